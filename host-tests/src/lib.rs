@@ -1,0 +1,61 @@
+//! Host (std) harness for `ctrl-adapt`: objective functions and a driver that runs any
+//! [`Optimizer`] against them, shared by the integration tests, the demo and the benchmarks.
+//! Plants (AUV, hopping leg) join this crate in later work.
+
+use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
+use rand_core::RngCore;
+
+pub mod functions;
+
+/// What one optimisation run produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Run<const N: usize> {
+    /// Cost of every evaluation, in order.
+    pub costs: Vec<f32>,
+    /// Best cost after each evaluation (non-increasing).
+    pub best_costs: Vec<f32>,
+    /// The best parameters found.
+    pub best_theta: Vector<N>,
+    /// Status when the run ended.
+    pub status: Status,
+}
+
+impl<const N: usize> Run<N> {
+    /// The best cost found.
+    pub fn best_cost(&self) -> f32 {
+        self.best_costs.last().copied().unwrap_or(f32::INFINITY)
+    }
+}
+
+/// Runs `optimizer` on `objective` until it stops or `max_evaluations` costs are told,
+/// calling `on_eval(evaluation, cost, best)` after each one (for progress displays).
+pub fn run<const N: usize, O, R>(
+    optimizer: &mut O,
+    rng: &mut R,
+    max_evaluations: usize,
+    mut objective: impl FnMut(&Vector<N>, &mut R) -> f32,
+    mut on_eval: impl FnMut(usize, f32, f32),
+) -> Result<Run<N>, Error>
+where
+    O: Optimizer<N>,
+    R: RngCore,
+{
+    let mut costs = Vec::new();
+    let mut best_costs = Vec::new();
+    while optimizer.status() == Status::Running && costs.len() < max_evaluations {
+        let theta = optimizer.ask(rng)?;
+        let cost = objective(&theta, rng);
+        optimizer.tell(cost)?;
+        let best = optimizer.best().map_or(cost, |b| b.cost);
+        costs.push(cost);
+        best_costs.push(best);
+        on_eval(costs.len(), cost, best);
+    }
+    let best_theta = optimizer.best().map_or_else(Vector::zeros, |b| b.theta);
+    Ok(Run {
+        costs,
+        best_costs,
+        best_theta,
+        status: optimizer.status(),
+    })
+}

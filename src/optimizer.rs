@@ -1,0 +1,373 @@
+//! The optimizer contract: sequential ask/tell minimisation over a box in R^N.
+//!
+//! On a robot one evaluation of the objective is one *episode* (seconds to minutes of
+//! running the plant), so every optimizer here is a resumable state machine rather than a
+//! function that takes a closure over the objective:
+//!
+//! 1. [`Optimizer::ask`] proposes the next parameter vector θ (always inside the
+//!    [`Bounds`]);
+//! 2. the caller runs an episode with θ and measures its cost (lower is better);
+//! 3. [`Optimizer::tell`] reports that cost.
+//!
+//! Batch algorithms (CEM, RACOS) still hand out one candidate per `ask` and update their
+//! model when a batch is complete, so a firmware never holds more than one candidate.
+//!
+//! # Why `ask` returns the candidate by value
+//! `ask` returns an owned [`Vector`] (4·N bytes, 72 bytes for the 18-parameter AUV policy)
+//! rather than a reference into the optimizer. A borrow would pin the optimizer for the whole
+//! episode, while the episode loop needs the candidate (in the policy) *and* the optimizer
+//! (to `tell` at the end) at the same time; the copy costs a few dozen instructions once per
+//! episode, which is nothing next to an episode.
+//!
+//! # Call order and errors
+//! * `ask` while a candidate is pending returns the *same* candidate again (idempotent), so a
+//!   firmware that lost it (a reset of the episode loop, a retry) can ask again without
+//!   perturbing the search.
+//! * `tell` without a pending candidate is [`Error::NoPendingAsk`]; a NaN or infinite cost is
+//!   [`Error::NonFinite`]. A rejected call leaves the optimizer exactly as it was: the
+//!   candidate stays pending, so the caller may re-run the episode and tell again.
+//! * `ask` after the optimizer has stopped (see [`Status`]) is [`Error::Stopped`]; the best
+//!   parameters are still available from [`Optimizer::best`].
+//!
+//! Randomness and time belong to the caller: the RNG is passed to `ask` as a
+//! [`rand_core::RngCore`], so runs are reproducible from a seed and the optimizer holds no
+//! RNG state of its own.
+
+use core::fmt;
+
+use nalgebra::SVector;
+use rand_core::RngCore;
+
+pub mod coordinate;
+
+pub use coordinate::{CoordinateConfig, CoordinateSearch};
+
+/// A parameter vector θ ∈ R^N in the on-target number type (`f32`: the Cortex-M4F FPU is
+/// single precision, `f64` would be emulated in software).
+pub type Vector<const N: usize> = SVector<f32, N>;
+
+/// What went wrong in a call. Small and `Copy`, so it can be returned from an interrupt
+/// handler or logged without allocation; the `&'static str` names the offending parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Error {
+    /// A value that must be finite was NaN or infinite (`"cost"`, `"start"`, ...).
+    NonFinite(&'static str),
+    /// `tell` was called without a pending candidate from `ask`.
+    NoPendingAsk,
+    /// A configuration parameter is outside its valid range (named as in the config).
+    InvalidParameter(&'static str),
+    /// The box is invalid in coordinate `index`: a bound is not finite or `lower >= upper`.
+    InvalidBounds {
+        /// The first offending coordinate.
+        index: usize,
+    },
+    /// A parameter vector (named) lies outside the box.
+    OutOfBounds(&'static str),
+    /// The optimizer has stopped (converged or budget spent) and proposes nothing more.
+    Stopped,
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NonFinite(what) => write!(f, "{what} is not finite"),
+            Self::NoPendingAsk => f.write_str("tell without a pending ask"),
+            Self::InvalidParameter(what) => write!(f, "invalid parameter: {what}"),
+            Self::InvalidBounds { index } => write!(
+                f,
+                "invalid bounds in coordinate {index}: bounds must be finite with lower < upper"
+            ),
+            Self::OutOfBounds(what) => write!(f, "{what} lies outside the bounds"),
+            Self::Stopped => f.write_str("the optimizer has stopped"),
+        }
+    }
+}
+
+impl core::error::Error for Error {}
+
+/// Where an optimizer is in its run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Status {
+    /// It will propose more candidates.
+    Running,
+    /// Its own stopping test holds (for example all step sizes below the tolerance).
+    Converged,
+    /// It has used its evaluation budget.
+    BudgetSpent,
+}
+
+/// The best parameters seen so far and their cost.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Best<const N: usize> {
+    /// The parameter vector.
+    pub theta: Vector<N>,
+    /// Its measured cost.
+    pub cost: f32,
+}
+
+/// A box `lower <= θ <= upper` in R^N: the parameter region an optimizer may propose from.
+///
+/// On a robot this is the first layer of the safety envelope: no candidate ever leaves it.
+///
+/// ```
+/// use ctrl_adapt::optimizer::{Bounds, Error, Vector};
+/// let b = Bounds::try_new([-1.0, 0.0].into(), [1.0, 2.0].into())?;
+/// assert!(b.contains(&[0.5, 2.0].into()));
+/// assert_eq!(b.clamp(&[3.0, -1.0].into()), Vector::from([1.0, 0.0]));
+/// assert_eq!(
+///     Bounds::<1>::try_new([1.0].into(), [1.0].into()),
+///     Err(Error::InvalidBounds { index: 0 })
+/// );
+/// # Ok::<(), Error>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Bounds<const N: usize> {
+    lower: Vector<N>,
+    upper: Vector<N>,
+}
+
+impl<const N: usize> Bounds<N> {
+    /// The box `[lower, upper]`; every bound must be finite and `lower[i] < upper[i]`
+    /// (a coordinate with no room to move should not be a parameter).
+    pub fn try_new(lower: Vector<N>, upper: Vector<N>) -> Result<Self, Error> {
+        const { assert!(N > 0, "an optimizer needs at least one parameter") };
+        for i in 0..N {
+            let (lo, hi) = (lower[i], upper[i]);
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(Error::InvalidBounds { index: i });
+            }
+        }
+        Ok(Self { lower, upper })
+    }
+
+    /// The same interval `[lower, upper]` in every coordinate.
+    pub fn uniform(lower: f32, upper: f32) -> Result<Self, Error> {
+        Self::try_new(Vector::repeat(lower), Vector::repeat(upper))
+    }
+
+    /// Lower corner.
+    pub fn lower(&self) -> &Vector<N> {
+        &self.lower
+    }
+
+    /// Upper corner.
+    pub fn upper(&self) -> &Vector<N> {
+        &self.upper
+    }
+
+    /// Whether `theta` is finite and inside the box (bounds included).
+    pub fn contains(&self, theta: &Vector<N>) -> bool {
+        (0..N).all(|i| theta[i] >= self.lower[i] && theta[i] <= self.upper[i])
+    }
+
+    /// `theta` projected onto the box coordinate-wise. A NaN coordinate maps to the lower
+    /// bound, so the result is always inside the box.
+    pub fn clamp(&self, theta: &Vector<N>) -> Vector<N> {
+        Vector::from_fn(|i, _| {
+            let v = theta[i];
+            if v.is_nan() {
+                self.lower[i]
+            } else {
+                v.clamp(self.lower[i], self.upper[i])
+            }
+        })
+    }
+
+    /// `Ok` if `theta` is finite and inside the box; otherwise an error naming it `what`.
+    pub fn check(&self, theta: &Vector<N>, what: &'static str) -> Result<(), Error> {
+        if theta.iter().any(|v| !v.is_finite()) {
+            Err(Error::NonFinite(what))
+        } else if self.contains(theta) {
+            Ok(())
+        } else {
+            Err(Error::OutOfBounds(what))
+        }
+    }
+
+    /// A point drawn uniformly from the box.
+    pub fn sample_uniform<R: RngCore + ?Sized>(&self, rng: &mut R) -> Vector<N> {
+        Vector::from_fn(|i, _| {
+            let v = self.lower[i] + unit_f32(rng) * (self.upper[i] - self.lower[i]);
+            // `lower + u·width` can round up to just past `upper`.
+            v.min(self.upper[i])
+        })
+    }
+}
+
+/// A uniform `f32` in `[0, 1)` from the top 24 bits of one `u32` (the mantissa width, so
+/// every value is exactly representable and 1.0 is never produced).
+pub fn unit_f32<R: RngCore + ?Sized>(rng: &mut R) -> f32 {
+    (rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// The sequential ask/tell interface every algorithm implements (minimisation).
+///
+/// `N` is the number of parameters, fixed at compile time so the optimizer's memory is
+/// known to the linker. There is no `dyn` here (`ask` is generic over the RNG); pick an
+/// algorithm with generics or an enum over them.
+pub trait Optimizer<const N: usize> {
+    /// The next candidate θ to evaluate, inside [`Optimizer::bounds`]. Repeats the pending
+    /// candidate if there is one; [`Error::Stopped`] once [`Optimizer::status`] is not
+    /// [`Status::Running`].
+    fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error>;
+
+    /// Reports the cost of the pending candidate. Rejects a non-finite cost or a missing
+    /// `ask` without changing any state.
+    fn tell(&mut self, cost: f32) -> Result<(), Error>;
+
+    /// The best (θ, cost) told so far, `None` before the first `tell`.
+    fn best(&self) -> Option<Best<N>>;
+
+    /// The candidate handed out by `ask` and not yet told, if any.
+    fn pending(&self) -> Option<&Vector<N>>;
+
+    /// How many costs have been accepted by `tell`.
+    fn evaluations(&self) -> u32;
+
+    /// Whether the optimizer will propose more candidates.
+    fn status(&self) -> Status;
+
+    /// The box every candidate lies in.
+    fn bounds(&self) -> &Bounds<N>;
+}
+
+/// The book-keeping every algorithm shares: the pending candidate, the evaluation count
+/// against the budget, and the best (θ, cost) so far. Keeping it in one place makes the
+/// "rejected call changes nothing" rule hold the same way in every optimizer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub(crate) struct Ledger<const N: usize> {
+    pending: Option<Vector<N>>,
+    evaluations: u32,
+    budget: u32,
+    best: Option<Best<N>>,
+}
+
+impl<const N: usize> Ledger<N> {
+    /// A fresh ledger allowing `budget` evaluations.
+    pub(crate) const fn new(budget: u32) -> Self {
+        Self {
+            pending: None,
+            evaluations: 0,
+            budget,
+            best: None,
+        }
+    }
+
+    /// Marks `theta` as handed out.
+    pub(crate) fn hand_out(&mut self, theta: Vector<N>) -> Vector<N> {
+        self.pending = Some(theta);
+        theta
+    }
+
+    /// Checks a `tell` before anything is changed; on success takes the pending candidate,
+    /// counts the evaluation and updates the best, returning the candidate.
+    pub(crate) fn accept(&mut self, cost: f32) -> Result<Vector<N>, Error> {
+        let theta = self.pending.ok_or(Error::NoPendingAsk)?;
+        if !cost.is_finite() {
+            return Err(Error::NonFinite("cost"));
+        }
+        self.pending = None;
+        self.evaluations = self.evaluations.saturating_add(1);
+        if self.best.is_none_or(|b| cost < b.cost) {
+            self.best = Some(Best { theta, cost });
+        }
+        Ok(theta)
+    }
+
+    pub(crate) fn pending(&self) -> Option<&Vector<N>> {
+        self.pending.as_ref()
+    }
+
+    pub(crate) fn evaluations(&self) -> u32 {
+        self.evaluations
+    }
+
+    pub(crate) fn budget_spent(&self) -> bool {
+        self.evaluations >= self.budget
+    }
+
+    pub(crate) fn best(&self) -> Option<Best<N>> {
+        self.best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_core::SeedableRng;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    #[test]
+    fn bounds_reject_non_finite_and_empty_intervals() {
+        let ok = Vector::<3>::repeat(1.0);
+        let mut lo = Vector::<3>::zeros();
+        assert!(Bounds::try_new(lo, ok).is_ok());
+        lo[2] = f32::NAN;
+        assert_eq!(
+            Bounds::try_new(lo, ok),
+            Err(Error::InvalidBounds { index: 2 })
+        );
+        lo[2] = 0.0;
+        lo[1] = 1.0;
+        assert_eq!(
+            Bounds::try_new(lo, ok),
+            Err(Error::InvalidBounds { index: 1 })
+        );
+        assert_eq!(
+            Bounds::<2>::uniform(0.0, f32::INFINITY),
+            Err(Error::InvalidBounds { index: 0 })
+        );
+    }
+
+    #[test]
+    fn uniform_samples_and_clamp_stay_inside() {
+        let b = Bounds::<4>::try_new(
+            [-1.0, 0.0, 1e-3, -1e6].into(),
+            [1.0, 1e-6, 2e-3, 1e6].into(),
+        )
+        .unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+        for _ in 0..10_000 {
+            assert!(b.contains(&b.sample_uniform(&mut rng)));
+        }
+        let wild = Vector::<4>::from([f32::NAN, f32::INFINITY, -f32::INFINITY, 0.0]);
+        let c = b.clamp(&wild);
+        assert!(b.contains(&c));
+        assert_eq!(b.check(&wild, "theta"), Err(Error::NonFinite("theta")));
+        assert_eq!(
+            b.check(&Vector::from([2.0, 0.0, 1e-3, 0.0]), "theta"),
+            Err(Error::OutOfBounds("theta"))
+        );
+    }
+
+    #[test]
+    fn ledger_rejects_without_change() {
+        let mut l = Ledger::<2>::new(3);
+        assert_eq!(l.accept(1.0), Err(Error::NoPendingAsk));
+        l.hand_out(Vector::from([0.5, 0.5]));
+        let before = l;
+        assert_eq!(l.accept(f32::NAN), Err(Error::NonFinite("cost")));
+        assert_eq!(l.accept(f32::NEG_INFINITY), Err(Error::NonFinite("cost")));
+        assert_eq!(l, before);
+        assert!(l.accept(2.0).is_ok());
+        assert_eq!(l.evaluations(), 1);
+        assert_eq!(l.best().map(|b| b.cost), Some(2.0));
+    }
+
+    #[test]
+    fn errors_display_their_parameter() {
+        extern crate std;
+        use std::string::ToString;
+        assert_eq!(
+            Error::InvalidParameter("sigma").to_string(),
+            "invalid parameter: sigma"
+        );
+        assert_eq!(Error::NonFinite("cost").to_string(), "cost is not finite");
+    }
+}
