@@ -5,7 +5,9 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod controller;
 pub mod optimizer;
+pub mod reward;
 
 pub use optimizer::{
     Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector,
@@ -22,4 +24,23 @@ const _: () = {
     assert_format::<Bounds<3>>();
     assert_format::<CoordinateConfig>();
     assert_format::<CoordinateSearch<3>>();
+    assert_format::<controller::Pd<3>>();
+    assert_format::<controller::Mode>();
+    assert_format::<controller::AdapterConfig>();
+    assert_format::<controller::EpisodeReport<3>>();
+    assert_format::<controller::CorrectedPd<3, 6, 6, 18, controller::StateFeatures<6>>>();
+    assert_format::<controller::PeriodicPd<10, 31>>();
+    assert_format::<reward::SurveyReward>();
+    assert_format::<reward::QuadraticCost<3>>();
+    assert_format::<reward::ApexHeightCost>();
+    assert_format::<
+        controller::Adapter<
+            CoordinateSearch<18>,
+            controller::CorrectedPd<3, 6, 6, 18, controller::StateFeatures<6>>,
+            reward::SurveyReward,
+            18,
+            6,
+            3,
+        >,
+    >();
 };

@@ -67,6 +67,10 @@ pub enum Error {
     OutOfBounds(&'static str),
     /// The optimizer has stopped (converged or budget spent) and proposes nothing more.
     Stopped,
+    /// An episode is running: end it before beginning another or changing mode.
+    EpisodeInProgress,
+    /// No episode is running: begin one first.
+    NoEpisode,
 }
 
 impl fmt::Display for Error {
@@ -81,6 +85,8 @@ impl fmt::Display for Error {
             ),
             Self::OutOfBounds(what) => write!(f, "{what} lies outside the bounds"),
             Self::Stopped => f.write_str("the optimizer has stopped"),
+            Self::EpisodeInProgress => f.write_str("an episode is in progress"),
+            Self::NoEpisode => f.write_str("no episode is in progress"),
         }
     }
 }

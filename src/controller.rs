@@ -1,0 +1,38 @@
+//! The controller layer: the firmware's PD loop, the linear correction policy that makes it
+//! adaptive, and the episodic [`Adapter`] that tunes the correction with an optimizer inside
+//! a safety envelope.
+//!
+//! ```text
+//!  state ──► nominal PD ──┐
+//!  state ──► φ(state, t) ─┴─► u = u_pd + clamp(W·φ)   (W = θ from the optimizer)
+//!  end of episode: cost = shaper.cost()  ──► optimizer.tell(cost), optimizer.ask() ──► next θ
+//! ```
+//!
+//! The optimizer never sees the plant and the plant never sees the optimizer: the adapter is
+//! the only piece that knows both.
+
+pub mod adapter;
+pub mod pd;
+pub mod policy;
+
+pub use adapter::{Adapter, AdapterConfig, EpisodeReport, Mode};
+pub use pd::{Derivative, Pd};
+pub use policy::{CorrectedPd, FeatureMap, LinearPolicy, PeriodicPd, PeriodicRbf, StateFeatures};
+
+use crate::optimizer::Vector;
+
+/// A controller with a nominal behaviour and a correction parameterised by θ ∈ R^P, over a
+/// state in R^S (time since the episode began given separately) and an action in R^A.
+pub trait Controller<const P: usize, const S: usize, const A: usize> {
+    /// The firmware's own controller, unchanged (θ plays no part).
+    fn nominal(&self, state: &Vector<S>, time: f32) -> Vector<A>;
+
+    /// The controller with the correction of θ applied, inside the correction envelope.
+    fn corrected(&self, theta: &Vector<P>, state: &Vector<S>, time: f32) -> Vector<A>;
+
+    /// What to command when even the nominal action is not finite (a NaN state): zeros by
+    /// default (stop the thrusters, relax the joints). Override if zero is not safe.
+    fn safe_action(&self) -> Vector<A> {
+        Vector::zeros()
+    }
+}

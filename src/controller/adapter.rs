@@ -1,0 +1,555 @@
+//! The episodic adapter: owns an optimizer, a controller with a correction policy and a
+//! reward shaper, and runs the learning loop one episode at a time.
+//!
+//! ```text
+//! begin_episode(rng)  → θ (optimizer.ask, or the best θ when deploying)
+//! control(state, obs) → action, every tick (and obs → shaper)
+//! end_episode()       → cost = shaper.cost() → optimizer.tell(cost)
+//! ```
+//!
+//! # The safety envelope
+//! 1. **Parameters in their box**: every θ comes from the optimizer, which only proposes
+//!    inside its [`Bounds`](crate::optimizer::Bounds); the initial θ is checked against them.
+//! 2. **Correction clamp**: the controller's correction is clamped (see
+//!    [`LinearPolicy`](super::LinearPolicy)).
+//! 3. **Non-finite state or action**: that tick gets the nominal action (or, if even that is
+//!    not finite, [`Controller::safe_action`]) and counts as a *faulty tick*.
+//! 4. **Failed episodes**: an episode with more than `max_faulty_ticks` faulty ticks, a
+//!    non-finite cost from the shaper, or one ended by [`Adapter::abort_episode`] (a watchdog,
+//!    the operator) is told `failure_cost` instead: a finite penalty that the configuration
+//!    documents. No NaN ever reaches an optimizer.
+//! 5. **Rollback**: after `learning_episodes` learning episodes, when the optimizer stops,
+//!    or on demand ([`Adapter::set_mode`]), the adapter runs the best θ found
+//!    ([`Mode::Deploy`]) and explores no more. [`Mode::Nominal`] runs the bare controller.
+
+use rand_core::RngCore;
+
+use super::Controller;
+use crate::optimizer::{Error, Optimizer, Vector};
+use crate::reward::Shaper;
+
+/// What the adapter does with episodes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Mode {
+    /// Explore: each episode runs the optimizer's next candidate and tells its cost.
+    Learn,
+    /// Never explore: run the best θ found (or the initial θ before any), tell nothing.
+    Deploy,
+    /// Run the bare nominal controller (a baseline, or a safe mode), tell nothing.
+    Nominal,
+}
+
+/// Parameters of an [`Adapter`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AdapterConfig {
+    /// Control period in seconds (> 0): the time step of the shaper and of `time` for the
+    /// controller.
+    pub dt: f32,
+    /// The cost told for a failed episode (finite). Choose it worse than any real episode's
+    /// cost (for the survey cost, more than the start's distance to the target).
+    pub failure_cost: f32,
+    /// An episode with more faulty ticks than this has failed.
+    pub max_faulty_ticks: u32,
+    /// Learning episodes before the adapter rolls back to the best θ (≥ 1).
+    pub learning_episodes: u32,
+}
+
+impl AdapterConfig {
+    /// `Ok` when every field is in range, else the first offending field.
+    pub fn validate(&self) -> Result<(), Error> {
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return Err(Error::InvalidParameter("dt"));
+        }
+        if !self.failure_cost.is_finite() {
+            return Err(Error::InvalidParameter("failure_cost"));
+        }
+        if self.learning_episodes == 0 {
+            return Err(Error::InvalidParameter("learning_episodes"));
+        }
+        Ok(())
+    }
+}
+
+/// What an episode was and what was told.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EpisodeReport<const P: usize> {
+    /// The parameters the episode ran.
+    pub theta: Vector<P>,
+    /// The mode it ran in.
+    pub mode: Mode,
+    /// The shaper's cost (may be non-finite).
+    pub cost: f32,
+    /// The cost told to the optimizer, if the episode was a learning one.
+    pub told: Option<f32>,
+    /// Whether it failed (and so was told the failure cost).
+    pub failed: bool,
+    /// Ticks whose state or action was not finite.
+    pub faulty_ticks: u32,
+    /// Ticks run.
+    pub ticks: u32,
+}
+
+/// The episode in progress.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct Episode<const P: usize> {
+    theta: Vector<P>,
+    mode: Mode,
+    ticks: u32,
+    faulty_ticks: u32,
+}
+
+/// The episodic learning loop with its safety envelope (see the [module docs](self)).
+///
+/// `O` optimizes θ ∈ R^P; `C` maps a state in R^S to an action in R^A; `R` scores episodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Adapter<O, C, R, const P: usize, const S: usize, const A: usize> {
+    optimizer: O,
+    controller: C,
+    shaper: R,
+    config: AdapterConfig,
+    mode: Mode,
+    initial: Vector<P>,
+    episode: Option<Episode<P>>,
+    learning_episodes: u32,
+}
+
+impl<O, C, R, const P: usize, const S: usize, const A: usize> Adapter<O, C, R, P, S, A>
+where
+    O: Optimizer<P>,
+    C: Controller<P, S, A>,
+    R: Shaper,
+{
+    /// An adapter in [`Mode::Learn`]. `initial` is the θ deployed before any episode has
+    /// been told (zero correction, or a θ learned elsewhere); it must lie in the optimizer's
+    /// bounds.
+    pub fn try_new(
+        optimizer: O,
+        controller: C,
+        shaper: R,
+        config: AdapterConfig,
+        initial: Vector<P>,
+    ) -> Result<Self, Error> {
+        config.validate()?;
+        optimizer.bounds().check(&initial, "initial")?;
+        Ok(Self {
+            optimizer,
+            controller,
+            shaper,
+            config,
+            mode: Mode::Learn,
+            initial,
+            episode: None,
+            learning_episodes: 0,
+        })
+    }
+
+    /// Starts an episode and returns the θ it runs. In [`Mode::Learn`] this asks the
+    /// optimizer; when the learning budget is spent or the optimizer has stopped, the
+    /// adapter rolls back to [`Mode::Deploy`] first. Errors if an episode is running.
+    pub fn begin_episode<G: RngCore + ?Sized>(&mut self, rng: &mut G) -> Result<Vector<P>, Error> {
+        if self.episode.is_some() {
+            return Err(Error::EpisodeInProgress);
+        }
+        if self.mode == Mode::Learn && self.learning_episodes >= self.config.learning_episodes {
+            self.mode = Mode::Deploy;
+        }
+        let theta = match self.mode {
+            Mode::Learn => match self.optimizer.ask(rng) {
+                Ok(theta) => theta,
+                Err(Error::Stopped) => {
+                    self.mode = Mode::Deploy;
+                    self.deployed_theta()
+                }
+                Err(e) => return Err(e),
+            },
+            Mode::Deploy => self.deployed_theta(),
+            Mode::Nominal => Vector::zeros(),
+        };
+        self.shaper.reset();
+        self.episode = Some(Episode {
+            theta,
+            mode: self.mode,
+            ticks: 0,
+            faulty_ticks: 0,
+        });
+        Ok(theta)
+    }
+
+    /// One control tick: the action for `state`, with `observation` fed to the shaper.
+    ///
+    /// Never fails: a non-finite state or corrected action gives the nominal action (or the
+    /// safe action) and counts a faulty tick. Outside an episode the nominal controller runs
+    /// and nothing is recorded.
+    pub fn control(&mut self, state: &Vector<S>, observation: &R::Observation) -> Vector<A> {
+        let Some(episode) = self.episode.as_mut() else {
+            return finite_or(self.controller.nominal(state, 0.0), || {
+                self.controller.safe_action()
+            });
+        };
+        let time = episode.ticks as f32 * self.config.dt;
+        let state_ok = state.iter().all(|v| v.is_finite());
+        let action = match episode.mode {
+            Mode::Nominal => self.controller.nominal(state, time),
+            _ if !state_ok => self.controller.nominal(state, time),
+            _ => self.controller.corrected(&episode.theta, state, time),
+        };
+        let action_ok = action.iter().all(|v| v.is_finite());
+        let action = if state_ok && action_ok {
+            action
+        } else {
+            episode.faulty_ticks = episode.faulty_ticks.saturating_add(1);
+            let nominal = self.controller.nominal(state, time);
+            finite_or(nominal, || self.controller.safe_action())
+        };
+        episode.ticks = episode.ticks.saturating_add(1);
+        self.shaper.observe(observation, self.config.dt);
+        action
+    }
+
+    /// Ends the episode: scores it and, when learning, tells the optimizer (the failure cost
+    /// if the episode failed). Errors if no episode is running.
+    pub fn end_episode(&mut self) -> Result<EpisodeReport<P>, Error> {
+        self.finish(false)
+    }
+
+    /// Ends the episode as failed (a watchdog fired, the operator stopped the robot): a
+    /// learning episode is told the failure cost.
+    pub fn abort_episode(&mut self) -> Result<EpisodeReport<P>, Error> {
+        self.finish(true)
+    }
+
+    fn finish(&mut self, aborted: bool) -> Result<EpisodeReport<P>, Error> {
+        let episode = self.episode.ok_or(Error::NoEpisode)?;
+        let cost = self.shaper.cost();
+        let failed =
+            aborted || !cost.is_finite() || episode.faulty_ticks > self.config.max_faulty_ticks;
+        let told = if episode.mode == Mode::Learn {
+            let value = if failed {
+                self.config.failure_cost
+            } else {
+                cost
+            };
+            self.optimizer.tell(value)?;
+            self.learning_episodes = self.learning_episodes.saturating_add(1);
+            Some(value)
+        } else {
+            None
+        };
+        self.episode = None;
+        Ok(EpisodeReport {
+            theta: episode.theta,
+            mode: episode.mode,
+            cost,
+            told,
+            failed,
+            faulty_ticks: episode.faulty_ticks,
+            ticks: episode.ticks,
+        })
+    }
+
+    /// Switches mode between episodes ([`Mode::Deploy`] is the rollback to the best θ).
+    /// Errors while an episode is running.
+    pub fn set_mode(&mut self, mode: Mode) -> Result<(), Error> {
+        if self.episode.is_some() {
+            return Err(Error::EpisodeInProgress);
+        }
+        self.mode = mode;
+        Ok(())
+    }
+
+    /// The current mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// The θ [`Mode::Deploy`] runs: the best told so far, else the initial θ.
+    pub fn deployed_theta(&self) -> Vector<P> {
+        self.optimizer.best().map_or(self.initial, |b| b.theta)
+    }
+
+    /// Learning episodes told so far.
+    pub fn learning_episodes(&self) -> u32 {
+        self.learning_episodes
+    }
+
+    /// Whether an episode is running.
+    pub fn in_episode(&self) -> bool {
+        self.episode.is_some()
+    }
+
+    /// The optimizer.
+    pub fn optimizer(&self) -> &O {
+        &self.optimizer
+    }
+
+    /// The controller.
+    pub fn controller(&self) -> &C {
+        &self.controller
+    }
+
+    /// The reward shaper (its running figures, e.g. the survey's minimum distance).
+    pub fn shaper(&self) -> &R {
+        &self.shaper
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &AdapterConfig {
+        &self.config
+    }
+}
+
+fn finite_or<const A: usize>(action: Vector<A>, safe: impl FnOnce() -> Vector<A>) -> Vector<A> {
+    if action.iter().all(|v| v.is_finite()) {
+        action
+    } else {
+        safe()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::controller::{CorrectedPd, LinearPolicy, Pd, StateFeatures};
+    use crate::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Status};
+    use proptest::prelude::*;
+    use rand_core::SeedableRng;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    /// A shaper whose cost is whatever the test sets (NaN included).
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    struct SetCost(f32);
+
+    impl Shaper for SetCost {
+        type Observation = f32;
+        fn reset(&mut self) {}
+        fn observe(&mut self, cost: &f32, _dt: f32) {
+            self.0 = *cost;
+        }
+        fn cost(&self) -> f32 {
+            self.0
+        }
+        fn skipped(&self) -> u32 {
+            0
+        }
+    }
+
+    type Ctl = CorrectedPd<1, 2, 2, 2, StateFeatures<2>>;
+    type Test = Adapter<CoordinateSearch<2>, Ctl, SetCost, 2, 2, 1>;
+
+    const CONFIG: AdapterConfig = AdapterConfig {
+        dt: 0.1,
+        failure_cost: 100.0,
+        max_faulty_ticks: 0,
+        learning_episodes: 50,
+    };
+
+    fn adapter(config: AdapterConfig, budget: u32) -> Test {
+        let pd = Pd::<1>::try_new(Vector::repeat(2.0), Vector::repeat(0.5)).unwrap();
+        let policy = LinearPolicy::try_new(StateFeatures::identity(), Vector::repeat(1.0)).unwrap();
+        let search = CoordinateSearch::try_new(
+            Bounds::uniform(-1.0, 1.0).unwrap(),
+            Vector::zeros(),
+            CoordinateConfig {
+                initial_step: 0.5,
+                max_evaluations: budget,
+                ..CoordinateConfig::DEFAULT
+            },
+        )
+        .unwrap();
+        Adapter::try_new(
+            search,
+            CorrectedPd::new(pd, policy),
+            SetCost(0.0),
+            config,
+            Vector::zeros(),
+        )
+        .unwrap()
+    }
+
+    fn rng() -> Xoshiro128PlusPlus {
+        Xoshiro128PlusPlus::seed_from_u64(5)
+    }
+
+    #[test]
+    fn non_finite_state_gets_the_nominal_or_safe_action_and_fails_the_episode() {
+        let mut a = adapter(CONFIG, 100);
+        let mut r = rng();
+        a.begin_episode(&mut r).unwrap();
+        // Finite state: the corrected action (θ is the start, zero, so nominal here).
+        let u = a.control(&Vector::from([1.0, 0.0]), &1.0);
+        assert_eq!(u, Vector::<1>::repeat(2.0));
+        // NaN rate: nominal is NaN too, so the safe action (zero) is used.
+        let u = a.control(&Vector::from([1.0, f32::NAN]), &1.0);
+        assert_eq!(u, Vector::<1>::repeat(0.0));
+        let report = a.end_episode().unwrap();
+        assert!(report.failed);
+        assert_eq!((report.faulty_ticks, report.ticks), (1, 2));
+        assert_eq!(report.told, Some(100.0));
+    }
+
+    /// A controller whose correction is broken (NaN) while its nominal law is fine.
+    #[derive(Debug, Clone, Copy)]
+    struct BrokenCorrection;
+
+    impl Controller<2, 2, 1> for BrokenCorrection {
+        fn nominal(&self, state: &Vector<2>, _time: f32) -> Vector<1> {
+            Vector::repeat(-state[0])
+        }
+        fn corrected(&self, _theta: &Vector<2>, _state: &Vector<2>, _time: f32) -> Vector<1> {
+            Vector::repeat(f32::NAN)
+        }
+    }
+
+    #[test]
+    fn non_finite_corrected_action_falls_back_to_nominal() {
+        let config = AdapterConfig {
+            max_faulty_ticks: 1,
+            ..CONFIG
+        };
+        let search = *adapter(CONFIG, 100).optimizer();
+        let mut a = Adapter::try_new(
+            search,
+            BrokenCorrection,
+            SetCost(0.0),
+            config,
+            Vector::zeros(),
+        )
+        .unwrap();
+        let mut r = rng();
+        a.begin_episode(&mut r).unwrap();
+        assert_eq!(
+            a.control(&Vector::from([0.25, 0.0]), &3.0),
+            Vector::<1>::repeat(-0.25)
+        );
+        let report = a.end_episode().unwrap();
+        assert!(
+            !report.failed,
+            "one faulty tick is tolerated with max_faulty_ticks = 1"
+        );
+        assert_eq!((report.faulty_ticks, report.told), (1, Some(3.0)));
+    }
+
+    #[test]
+    fn call_order_is_checked() {
+        let mut a = adapter(CONFIG, 100);
+        let mut r = rng();
+        assert_eq!(a.end_episode(), Err(Error::NoEpisode));
+        // Outside an episode the nominal controller runs and nothing is recorded.
+        assert_eq!(
+            a.control(&Vector::from([0.5, 0.0]), &3.0),
+            Vector::<1>::repeat(1.0)
+        );
+        a.begin_episode(&mut r).unwrap();
+        assert_eq!(a.begin_episode(&mut r), Err(Error::EpisodeInProgress));
+        assert_eq!(a.set_mode(Mode::Deploy), Err(Error::EpisodeInProgress));
+        a.end_episode().unwrap();
+        let bad = Adapter::try_new(
+            *a.optimizer(),
+            *a.controller(),
+            SetCost(0.0),
+            CONFIG,
+            Vector::from([2.0, 0.0]),
+        );
+        assert_eq!(bad.unwrap_err(), Error::OutOfBounds("initial"));
+        let bad_cfg = AdapterConfig {
+            failure_cost: f32::NAN,
+            ..CONFIG
+        };
+        assert_eq!(
+            Adapter::try_new(
+                *a.optimizer(),
+                *a.controller(),
+                SetCost(0.0),
+                bad_cfg,
+                Vector::zeros()
+            )
+            .unwrap_err(),
+            Error::InvalidParameter("failure_cost")
+        );
+    }
+
+    #[test]
+    fn rolls_back_to_the_best_after_the_learning_budget() {
+        let mut a = adapter(
+            AdapterConfig {
+                learning_episodes: 6,
+                ..CONFIG
+            },
+            100,
+        );
+        let mut r = rng();
+        let mut best = (f32::INFINITY, Vector::<2>::zeros());
+        for k in 0..6 {
+            let theta = a.begin_episode(&mut r).unwrap();
+            // Cost: distance of θ to (0.5, −0.5), reported through the shaper.
+            let cost = (theta - Vector::from([0.5, -0.5])).norm() + k as f32 * 0.0;
+            a.control(&Vector::zeros(), &cost);
+            let report = a.end_episode().unwrap();
+            assert_eq!(report.mode, Mode::Learn);
+            if cost < best.0 {
+                best = (cost, theta);
+            }
+        }
+        let theta = a.begin_episode(&mut r).unwrap();
+        assert_eq!(a.mode(), Mode::Deploy);
+        assert_eq!(theta, best.1);
+        a.control(&Vector::zeros(), &0.0);
+        let report = a.end_episode().unwrap();
+        assert_eq!((report.mode, report.told), (Mode::Deploy, None));
+        assert_eq!(a.optimizer().evaluations(), 6, "deployment tells nothing");
+        // Nominal mode runs θ = 0 through the nominal law.
+        a.set_mode(Mode::Nominal).unwrap();
+        a.begin_episode(&mut r).unwrap();
+        assert_eq!(
+            a.control(&Vector::from([1.0, 1.0]), &0.0),
+            Vector::<1>::repeat(1.5)
+        );
+        a.end_episode().unwrap();
+    }
+
+    #[test]
+    fn a_stopped_optimizer_means_deployment() {
+        let mut a = adapter(CONFIG, 2);
+        let mut r = rng();
+        for _ in 0..2 {
+            a.begin_episode(&mut r).unwrap();
+            a.control(&Vector::zeros(), &1.0);
+            a.end_episode().unwrap();
+        }
+        assert_eq!(a.optimizer().status(), Status::BudgetSpent);
+        a.begin_episode(&mut r).unwrap();
+        assert_eq!(a.mode(), Mode::Deploy);
+    }
+
+    proptest! {
+        /// Checks: whatever cost the shaper reports (any f32) and however many faulty ticks,
+        /// `end_episode` succeeds, tells a finite cost (the failure cost exactly when the
+        /// episode failed), and the optimizer counts one more evaluation.
+        #[test]
+        fn never_tells_a_non_finite_cost(
+            costs in prop::collection::vec(proptest::num::f32::ANY, 1..20),
+            nan_ticks in prop::collection::vec(any::<bool>(), 1..20),
+        ) {
+            let mut a = adapter(CONFIG, 1000);
+            let mut r = rng();
+            for (k, cost) in costs.iter().enumerate() {
+                a.begin_episode(&mut r).unwrap();
+                let bad = nan_ticks[k % nan_ticks.len()];
+                let state = if bad { Vector::from([f32::NAN, 0.0]) } else { Vector::zeros() };
+                let u = a.control(&state, cost);
+                prop_assert!(u.iter().all(|v| v.is_finite()));
+                let report = a.end_episode().unwrap();
+                let told = report.told.unwrap();
+                prop_assert!(told.is_finite());
+                prop_assert_eq!(report.failed, bad || !cost.is_finite());
+                prop_assert_eq!(told, if report.failed { 100.0 } else { *cost });
+                prop_assert_eq!(a.optimizer().evaluations(), k as u32 + 1);
+            }
+        }
+    }
+}

@@ -1,0 +1,519 @@
+//! Linear correction policies: c = clamp(W·φ(state, t)), with W the optimizer's θ.
+//!
+//! The correction c is added to what the firmware's own controller does: to its output (the
+//! AUV of Leonetti et al. 2012, section 5: "the actions are the continuous velocities summed
+//! to the controller's one", 18 parameters) or to its reference and gains (the hopping leg
+//! of Hwangbo et al., section IV: knee reference, k_p and k_d each on 10 periodic Gaussian
+//! kernels, plus the period, 31 parameters).
+//!
+//! # Layout of θ
+//! θ = [W row 0 | W row 1 | … | W row C−1 | learned feature-map parameters], W being C×F
+//! row-major: θ[F·a + f] weighs feature f in correction a. A feature map with learned
+//! parameters (the period of [`PeriodicRbf`]) takes them from the tail. The length is checked
+//! at compile time: P = C·F + [`FeatureMap::LEARNED`].
+//!
+//! # The envelope
+//! Every correction component is clamped to ±envelope\[a\] whatever θ and the state are; a
+//! NaN component (from a NaN state) becomes 0, so the correction never leaves the envelope.
+//! This is the second layer of the safety envelope, after the parameter box.
+
+use core::f32::consts::TAU;
+
+use super::{Controller, Pd};
+use crate::optimizer::{Error, Vector};
+
+/// Features φ ∈ R^F of the state and of the time since the episode began.
+pub trait FeatureMap<const S: usize, const F: usize> {
+    /// How many θ entries (after the weights) the map learns itself.
+    const LEARNED: usize = 0;
+
+    /// φ(state, time), given the map's learned parameters (`LEARNED` values).
+    fn features(&self, state: &Vector<S>, time: f32, learned: &[f32]) -> Vector<F>;
+}
+
+/// φ = scale ∘ state: the state-linear features of the AUV policy (position error and
+/// velocity, 6 features). `scale` normalises units so one step size suits every weight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StateFeatures<const S: usize> {
+    scale: Vector<S>,
+}
+
+impl<const S: usize> StateFeatures<S> {
+    /// φ = state.
+    pub fn identity() -> Self {
+        Self {
+            scale: Vector::repeat(1.0),
+        }
+    }
+
+    /// φ = scale ∘ state; every scale must be finite.
+    pub fn scaled(scale: Vector<S>) -> Result<Self, Error> {
+        if scale.iter().any(|s| !s.is_finite()) {
+            return Err(Error::InvalidParameter("scale"));
+        }
+        Ok(Self { scale })
+    }
+}
+
+impl<const S: usize> FeatureMap<S, S> for StateFeatures<S> {
+    fn features(&self, state: &Vector<S>, _time: f32, _learned: &[f32]) -> Vector<S> {
+        self.scale.component_mul(state)
+    }
+}
+
+/// K periodically recurring Gaussian kernels of the phase ϕ = (t / T) mod 1, normalised to
+/// sum to 1 (the rhythmic movement primitive of Hwangbo et al., after Ijspeert et al.):
+/// ψ_i = exp(h (cos 2π(ϕ − i/K) − 1)), φ_i = ψ_i / Σ_j ψ_j.
+///
+/// The period is learned: T = clamp(T₀ + θ_last, T_min, T_max) ([`FeatureMap::LEARNED`] = 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PeriodicRbf<const K: usize> {
+    period: f32,
+    min_period: f32,
+    max_period: f32,
+    width: f32,
+}
+
+impl<const K: usize> PeriodicRbf<K> {
+    /// Kernels with nominal period `period` (s), learned period kept in
+    /// `[min_period, max_period]`, and the default width h = (K/π)², for which a kernel's
+    /// standard deviation (1/√h rad) is half the spacing between kernels (2π/K rad).
+    pub fn try_new(period: f32, min_period: f32, max_period: f32) -> Result<Self, Error> {
+        const { assert!(K > 0, "at least one kernel") };
+        if !(min_period.is_finite() && min_period > 0.0) {
+            return Err(Error::InvalidParameter("min_period"));
+        }
+        if !(max_period.is_finite() && max_period >= min_period) {
+            return Err(Error::InvalidParameter("max_period"));
+        }
+        if !(period >= min_period && period <= max_period) {
+            return Err(Error::InvalidParameter("period"));
+        }
+        let k = K as f32 / core::f32::consts::PI;
+        Ok(Self {
+            period,
+            min_period,
+            max_period,
+            width: k * k,
+        })
+    }
+
+    /// Sets the kernel width h (> 0, finite).
+    pub fn with_width(mut self, width: f32) -> Result<Self, Error> {
+        if !(width.is_finite() && width > 0.0) {
+            return Err(Error::InvalidParameter("width"));
+        }
+        self.width = width;
+        Ok(self)
+    }
+
+    /// The period T for a learned offset (NaN offsets give the nominal period).
+    pub fn period(&self, offset: f32) -> f32 {
+        let t = self.period + offset;
+        if t.is_nan() {
+            self.period
+        } else {
+            t.clamp(self.min_period, self.max_period)
+        }
+    }
+
+    /// The normalised features and their time derivatives at `time` for period `period`.
+    /// The derivative feeds the reference rate ẋ_d of eq. 6 (derivative on error).
+    pub fn features_and_rates(&self, time: f32, period: f32) -> (Vector<K>, Vector<K>) {
+        let phase = time / period;
+        let phase = phase - libm::floorf(phase);
+        let mut psi = Vector::<K>::zeros();
+        let mut dpsi = Vector::<K>::zeros();
+        for i in 0..K {
+            let angle = TAU * (phase - i as f32 / K as f32);
+            let p = libm::expf(self.width * (libm::cosf(angle) - 1.0));
+            psi[i] = p;
+            // dψ/dt = ψ · (−h sin angle) · 2π/T
+            dpsi[i] = -p * self.width * libm::sinf(angle) * TAU / period;
+        }
+        // Σψ ≥ the largest kernel ≥ exp(−h(1 − cos(π/K))) > 0: the nearest centre is at most
+        // half a spacing away. Guard anyway against underflow for absurd widths.
+        let sum = psi.sum();
+        if !(sum.is_finite() && sum >= f32::MIN_POSITIVE) {
+            return (Vector::repeat(1.0 / K as f32), Vector::zeros());
+        }
+        let dsum = dpsi.sum();
+        let phi = psi / sum;
+        let dphi = (dpsi - phi * dsum) / sum;
+        (phi, dphi)
+    }
+}
+
+impl<const S: usize, const K: usize> FeatureMap<S, K> for PeriodicRbf<K> {
+    const LEARNED: usize = 1;
+
+    fn features(&self, _state: &Vector<S>, time: f32, learned: &[f32]) -> Vector<K> {
+        let offset = learned.first().copied().unwrap_or(0.0);
+        self.features_and_rates(time, self.period(offset)).0
+    }
+}
+
+/// c = clamp(W·φ): C corrections linear in F features, W taken from θ (layout in the
+/// [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinearPolicy<const C: usize, const F: usize, M> {
+    map: M,
+    envelope: Vector<C>,
+}
+
+impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
+    /// A policy over `map` whose correction a stays within ±`envelope[a]` (> 0, finite).
+    pub fn try_new(map: M, envelope: Vector<C>) -> Result<Self, Error> {
+        if envelope.iter().any(|e| !(e.is_finite() && *e > 0.0)) {
+            return Err(Error::InvalidParameter("envelope"));
+        }
+        Ok(Self { map, envelope })
+    }
+
+    /// The feature map.
+    pub fn map(&self) -> &M {
+        &self.map
+    }
+
+    /// The correction envelope.
+    pub fn envelope(&self) -> &Vector<C> {
+        &self.envelope
+    }
+
+    /// The learned feature-map parameters: θ after the C·F weights.
+    pub fn learned<const P: usize>(theta: &Vector<P>) -> &[f32] {
+        theta.as_slice().get(C * F..).unwrap_or(&[])
+    }
+
+    /// clamp(W·φ) for given features (when the caller needs φ itself, as [`PeriodicPd`]).
+    pub fn correction_from_features<const P: usize>(
+        &self,
+        theta: &Vector<P>,
+        phi: &Vector<F>,
+    ) -> Vector<C> {
+        let mut c = Vector::<C>::zeros();
+        let rows = theta.as_slice().chunks_exact(F);
+        for ((out, row), limit) in c.iter_mut().zip(rows).zip(self.envelope.iter()) {
+            let sum: f32 = row.iter().zip(phi.iter()).map(|(w, p)| w * p).sum();
+            *out = if sum.is_nan() {
+                0.0
+            } else {
+                sum.clamp(-limit, *limit)
+            };
+        }
+        c
+    }
+
+    /// c = clamp(W·φ(state, time)), within ±envelope for any θ and state.
+    pub fn correction<const S: usize, const P: usize>(
+        &self,
+        theta: &Vector<P>,
+        state: &Vector<S>,
+        time: f32,
+    ) -> Vector<C>
+    where
+        M: FeatureMap<S, F>,
+    {
+        const { assert!(P == C * F + M::LEARNED, "θ length must be C·F + learned") };
+        let phi = self.map.features(state, time, Self::learned(theta));
+        self.correction_from_features(theta, &phi)
+    }
+}
+
+/// A PD on A axes whose output is corrected: u = sat(k_p e − k_d ẏ + c), the AUV policy.
+///
+/// State layout (S = 2A): [error = setpoint − measurement (A) | measured rate ẏ (A)]; the PD
+/// differentiates on measurement (ė = −ẏ). The nominal action is u = sat(k_p e − k_d ẏ).
+///
+/// ```
+/// use ctrl_adapt::controller::{Controller, CorrectedPd, LinearPolicy, Pd, StateFeatures};
+/// use ctrl_adapt::optimizer::Vector;
+/// // AUV: 3 velocity commands, corrected linearly in [position error, velocity]: 18 weights.
+/// let pd = Pd::<3>::try_new(Vector::repeat(0.3), Vector::repeat(0.1))?
+///     .with_limit(Vector::repeat(2.0))?;
+/// let policy = LinearPolicy::<3, 6, _>::try_new(StateFeatures::<6>::identity(), Vector::repeat(0.5))?;
+/// let auv = CorrectedPd::<3, 6, 6, 18, _>::new(pd, policy);
+/// let state = Vector::<6>::from([2.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
+/// let mut theta = Vector::<18>::zeros();
+/// assert_eq!(auv.corrected(&theta, &state, 0.0), auv.nominal(&state, 0.0));
+/// theta[2] = 10.0; // correction x grows with the depth error, clamped to 0.5
+/// assert!((auv.corrected(&theta, &state, 0.0)[0] - (0.6 + 0.5)).abs() < 1e-6);
+/// # Ok::<(), ctrl_adapt::optimizer::Error>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CorrectedPd<const A: usize, const S: usize, const F: usize, const P: usize, M> {
+    pd: Pd<A>,
+    policy: LinearPolicy<A, F, M>,
+}
+
+impl<const A: usize, const S: usize, const F: usize, const P: usize, M> CorrectedPd<A, S, F, P, M>
+where
+    M: FeatureMap<S, F>,
+{
+    /// The PD `pd` corrected by `policy`; S = 2A and P = A·F + learned, checked at compile
+    /// time.
+    pub fn new(pd: Pd<A>, policy: LinearPolicy<A, F, M>) -> Self {
+        const { assert!(S == 2 * A, "state is [error (A) | rate (A)]") };
+        const { assert!(P == A * F + M::LEARNED, "θ length must be A·F + learned") };
+        Self { pd, policy }
+    }
+
+    /// The PD.
+    pub fn pd(&self) -> &Pd<A> {
+        &self.pd
+    }
+
+    /// The correction policy.
+    pub fn policy(&self) -> &LinearPolicy<A, F, M> {
+        &self.policy
+    }
+
+    fn unsaturated(&self, state: &Vector<S>) -> Vector<A> {
+        let error = Vector::<A>::from_fn(|i, _| state[i]);
+        let rate = Vector::<A>::from_fn(|i, _| -state[A + i]);
+        self.pd.raw(&error, &rate)
+    }
+}
+
+impl<const A: usize, const S: usize, const F: usize, const P: usize, M> Controller<P, S, A>
+    for CorrectedPd<A, S, F, P, M>
+where
+    M: FeatureMap<S, F>,
+{
+    fn nominal(&self, state: &Vector<S>, _time: f32) -> Vector<A> {
+        self.pd.saturate(&self.unsaturated(state))
+    }
+
+    fn corrected(&self, theta: &Vector<P>, state: &Vector<S>, time: f32) -> Vector<A> {
+        let c = self.policy.correction(theta, state, time);
+        self.pd.saturate(&(self.unsaturated(state) + c))
+    }
+}
+
+/// Periodic variable-impedance PD of a hopping leg (Hwangbo et al., section IV, eq. 6):
+/// τ = k_p (x_d − x) + k_d (ẋ_d − ẋ) on [knee, hip], scalar gains shared by both joints.
+///
+/// * Knee reference x_d1(ϕ) = w₀·φ(ϕ) + c₀: nominal kernel weights w₀ (rad) plus correction.
+/// * Hip reference x_d2 = g·x_d1 + o: "constrained by the leg configuration given x_d1" in the
+///   paper (for a foot kept under the hip with equal links, g = −1/2).
+/// * Gains k_p = max(k_p0 + c₁, 0), k_d = max(k_d0 + c₂, 0).
+/// * c = clamp(W·φ) with W 3×K, and the period learned: θ has 3K + 1 entries (31 for K = 10).
+///
+/// State layout (S = 4): [x_knee, x_hip, ẋ_knee, ẋ_hip]; action: [τ_knee, τ_hip].
+/// P = 3K + 1 is checked at compile time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PeriodicPd<const K: usize, const P: usize> {
+    pd: Pd<2>,
+    knee_weights: Vector<K>,
+    hip_gain: f32,
+    hip_offset: f32,
+    policy: LinearPolicy<3, K, PeriodicRbf<K>>,
+}
+
+impl<const K: usize, const P: usize> PeriodicPd<K, P> {
+    /// `pd` holds the nominal gains (its k_p and k_d for the knee are k_p0, k_d0 and are used
+    /// for both joints, as in eq. 6) and torque limits; `knee_weights` the nominal knee
+    /// reference on the kernels of `policy`'s map; the hip follows x_d2 = g·x_d1 + o.
+    pub fn try_new(
+        pd: Pd<2>,
+        knee_weights: Vector<K>,
+        hip_gain: f32,
+        hip_offset: f32,
+        policy: LinearPolicy<3, K, PeriodicRbf<K>>,
+    ) -> Result<Self, Error> {
+        const { assert!(P == 3 * K + 1, "θ = [W (3×K) | period offset]") };
+        if knee_weights.iter().any(|w| !w.is_finite()) {
+            return Err(Error::InvalidParameter("knee_weights"));
+        }
+        if !(hip_gain.is_finite() && hip_offset.is_finite()) {
+            return Err(Error::InvalidParameter("hip"));
+        }
+        Ok(Self {
+            pd,
+            knee_weights,
+            hip_gain,
+            hip_offset,
+            policy,
+        })
+    }
+
+    /// The correction policy (its map holds the nominal period).
+    pub fn policy(&self) -> &LinearPolicy<3, K, PeriodicRbf<K>> {
+        &self.policy
+    }
+
+    /// Knee and hip torques for correction `c` = [Δx_d1, Δk_p, Δk_d] with weights-rate
+    /// `dref` (ẋ_d1) and reference `reference` (x_d1).
+    fn torques(
+        &self,
+        state: &Vector<4>,
+        reference: f32,
+        reference_rate: f32,
+        c: &Vector<3>,
+    ) -> Vector<2> {
+        let x_d = Vector::<2>::from([reference, self.hip_gain * reference + self.hip_offset]);
+        let xdot_d = Vector::<2>::from([reference_rate, self.hip_gain * reference_rate]);
+        let x = Vector::<2>::from([state[0], state[1]]);
+        let xdot = Vector::<2>::from([state[2], state[3]]);
+        let kp = (self.pd.kp()[0] + c[1]).max(0.0);
+        let kd = (self.pd.kd()[0] + c[2]).max(0.0);
+        self.pd.output_with_gains(
+            &Vector::repeat(kp),
+            &Vector::repeat(kd),
+            &(x_d - x),
+            &(xdot_d - xdot),
+        )
+    }
+}
+
+impl<const K: usize, const P: usize> Controller<P, 4, 2> for PeriodicPd<K, P> {
+    fn nominal(&self, state: &Vector<4>, time: f32) -> Vector<2> {
+        let map = self.policy.map();
+        let (phi, dphi) = map.features_and_rates(time, map.period(0.0));
+        let (r, dr) = (self.knee_weights.dot(&phi), self.knee_weights.dot(&dphi));
+        self.torques(state, r, dr, &Vector::zeros())
+    }
+
+    fn corrected(&self, theta: &Vector<P>, state: &Vector<4>, time: f32) -> Vector<2> {
+        let map = self.policy.map();
+        let learned = LinearPolicy::<3, K, PeriodicRbf<K>>::learned(theta);
+        let period = map.period(learned.first().copied().unwrap_or(0.0));
+        let (phi, dphi) = map.features_and_rates(time, period);
+        let c = self.policy.correction_from_features(theta, &phi);
+        // ẋ_d1: the nominal part always moves; the correction's part only while unclamped.
+        let knee_row = Vector::<K>::from_fn(|i, _| theta.as_slice().get(i).copied().unwrap_or(0.0));
+        let unclamped = c[0].abs() < self.policy.envelope()[0];
+        let dc = if unclamped { knee_row.dot(&dphi) } else { 0.0 };
+        let r = self.knee_weights.dot(&phi) + c[0];
+        let dr = self.knee_weights.dot(&dphi) + dc;
+        self.torques(state, r, dr, &c)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn auv() -> CorrectedPd<3, 6, 6, 18, StateFeatures<6>> {
+        let pd = Pd::<3>::try_new(Vector::repeat(0.3), Vector::repeat(0.1))
+            .unwrap()
+            .with_limit(Vector::repeat(1.0))
+            .unwrap();
+        let policy = LinearPolicy::try_new(StateFeatures::identity(), Vector::repeat(0.4)).unwrap();
+        CorrectedPd::new(pd, policy)
+    }
+
+    fn leg() -> PeriodicPd<10, 31> {
+        let pd = Pd::<2>::try_new(Vector::repeat(40.0), Vector::repeat(1.0))
+            .unwrap()
+            .with_limit(Vector::repeat(30.0))
+            .unwrap();
+        let map = PeriodicRbf::<10>::try_new(0.6, 0.4, 0.9).unwrap();
+        let policy = LinearPolicy::try_new(map, Vector::from([0.3, 20.0, 1.0])).unwrap();
+        let weights = Vector::from_fn(|i, _| -1.2 + 0.3 * libm::cosf(TAU * i as f32 / 10.0));
+        PeriodicPd::try_new(pd, weights, -0.5, 0.0, policy).unwrap()
+    }
+
+    #[test]
+    fn periodic_features_sum_to_one_and_rates_match_finite_differences() {
+        let map = PeriodicRbf::<10>::try_new(0.5, 0.3, 1.0).unwrap();
+        for k in 0..200 {
+            let t = k as f32 * 0.0137;
+            let (phi, dphi) = map.features_and_rates(t, 0.5);
+            assert!((phi.sum() - 1.0).abs() < 1e-5);
+            assert!(phi.iter().all(|p| *p >= 0.0));
+            let h = 1e-3;
+            let (ahead, _) = map.features_and_rates(t + h, 0.5);
+            let (behind, _) = map.features_and_rates(t - h, 0.5);
+            let fd = (ahead - behind) / (2.0 * h);
+            assert!((fd - dphi).amax() < 0.05 * dphi.amax().max(1.0), "t={t}");
+        }
+        // Periodic: the same features one period later.
+        let (a, _) = map.features_and_rates(0.123, 0.5);
+        let (b, _) = map.features_and_rates(0.623, 0.5);
+        assert!((a - b).amax() < 1e-4);
+    }
+
+    #[test]
+    fn period_is_learned_and_bounded() {
+        let map = PeriodicRbf::<4>::try_new(0.5, 0.3, 1.0).unwrap();
+        assert_eq!(map.period(0.1), 0.6);
+        assert_eq!(map.period(5.0), 1.0);
+        assert_eq!(map.period(f32::NAN), 0.5);
+        assert_eq!(
+            PeriodicRbf::<4>::try_new(0.2, 0.3, 1.0),
+            Err(Error::InvalidParameter("period"))
+        );
+    }
+
+    #[test]
+    fn zero_correction_is_the_nominal_controller() {
+        let auv = auv();
+        let s = Vector::<6>::from([3.0, -1.0, 0.5, 0.2, 0.0, -0.3]);
+        assert_eq!(
+            auv.corrected(&Vector::<18>::zeros(), &s, 0.0),
+            auv.nominal(&s, 0.0)
+        );
+        let leg = leg();
+        let q = Vector::<4>::from([-1.0, 0.5, 0.3, -0.1]);
+        for t in [0.0, 0.11, 0.37] {
+            let a = leg.corrected(&Vector::<31>::zeros(), &q, t);
+            let b = leg.nominal(&q, t);
+            assert!((a - b).amax() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn weights_follow_the_documented_layout() {
+        // θ[6·a + f] weighs feature f in correction a.
+        let auv = auv();
+        let s = Vector::<6>::from([0.0, 0.0, 0.0, 0.0, 0.1, 0.0]);
+        let mut theta = Vector::<18>::zeros();
+        theta[6 * 2 + 4] = 2.0; // z correction from y velocity
+        let c = auv.policy().correction(&theta, &s, 0.0);
+        assert_eq!(c, Vector::from([0.0, 0.0, 0.2]));
+    }
+
+    proptest! {
+        /// Checks: for any θ and any state (NaN and infinities included), the AUV correction
+        /// stays within its envelope, and the action within the PD's output limit.
+        #[test]
+        fn auv_correction_stays_in_its_envelope(
+            theta in prop::array::uniform18(proptest::num::f32::ANY),
+            state in prop::array::uniform6(proptest::num::f32::ANY),
+        ) {
+            let auv = auv();
+            let (theta, state) = (Vector::from(theta), Vector::from(state));
+            let c = auv.policy().correction(&theta, &state, 0.0);
+            prop_assert!(c.iter().all(|v| v.abs() <= 0.4));
+            let u = auv.corrected(&theta, &state, 0.0);
+            prop_assert!(u.iter().all(|v| v.is_nan() || v.abs() <= 1.0));
+            if state.iter().all(|v| v.is_finite() && v.abs() < 1e6) {
+                prop_assert!(u.iter().all(|v| v.is_finite()));
+            }
+        }
+
+        /// Checks: for any θ (31 entries) and any time, the leg's corrections stay within
+        /// their envelope and the torques within the limit.
+        #[test]
+        fn leg_correction_stays_in_its_envelope(
+            w in prop::collection::vec(-1e3f32..1e3, 31),
+            time in 0.0f32..100.0,
+            state in prop::array::uniform4(-10.0f32..10.0),
+        ) {
+            let leg = leg();
+            let theta = Vector::<31>::from_column_slice(&w);
+            let phi = leg.policy().map().features_and_rates(time, 0.6).0;
+            let c = leg.policy().correction_from_features(&theta, &phi);
+            prop_assert!(c[0].abs() <= 0.3 && c[1].abs() <= 20.0 && c[2].abs() <= 1.0);
+            let tau = leg.corrected(&theta, &Vector::from(state), time);
+            prop_assert!(tau.iter().all(|t| t.is_finite() && t.abs() <= 30.0));
+        }
+    }
+}
