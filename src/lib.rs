@@ -10,7 +10,8 @@ pub mod optimizer;
 pub mod reward;
 
 pub use optimizer::{
-    Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector,
+    Best, Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Error,
+    Optimizer, Status, TwoPhase, Vector,
 };
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
@@ -24,6 +25,8 @@ const _: () = {
     assert_format::<Bounds<3>>();
     assert_format::<CoordinateConfig>();
     assert_format::<CoordinateSearch<3>>();
+    assert_format::<ControlledRandomSearch<3, 8>>();
+    assert_format::<TwoPhase<ControlledRandomSearch<3, 8>, 3>>();
     assert_format::<controller::Pd<3>>();
     assert_format::<controller::Mode>();
     assert_format::<controller::AdapterConfig>();

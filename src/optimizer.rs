@@ -39,8 +39,12 @@ use nalgebra::SVector;
 use rand_core::RngCore;
 
 pub mod coordinate;
+pub mod crs;
+pub mod two_phase;
 
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
+pub use crs::{ControlledRandomSearch, CrsConfig};
+pub use two_phase::TwoPhase;
 
 /// A parameter vector θ ∈ R^N in the on-target number type (`f32`: the Cortex-M4F FPU is
 /// single precision, `f64` would be emulated in software).
@@ -67,6 +71,10 @@ pub enum Error {
     OutOfBounds(&'static str),
     /// The optimizer has stopped (converged or budget spent) and proposes nothing more.
     Stopped,
+    /// A candidate is pending: tell its cost first.
+    CandidatePending,
+    /// Nothing has been evaluated yet.
+    NoEvaluation,
     /// An episode is running: end it before beginning another or changing mode.
     EpisodeInProgress,
     /// No episode is running: begin one first.
@@ -85,6 +93,8 @@ impl fmt::Display for Error {
             ),
             Self::OutOfBounds(what) => write!(f, "{what} lies outside the bounds"),
             Self::Stopped => f.write_str("the optimizer has stopped"),
+            Self::CandidatePending => f.write_str("a candidate is pending: tell its cost first"),
+            Self::NoEvaluation => f.write_str("nothing has been evaluated yet"),
             Self::EpisodeInProgress => f.write_str("an episode is in progress"),
             Self::NoEpisode => f.write_str("no episode is in progress"),
         }
@@ -209,6 +219,12 @@ impl<const N: usize> Bounds<N> {
 /// every value is exactly representable and 1.0 is never produced).
 pub fn unit_f32<R: RngCore + ?Sized>(rng: &mut R) -> f32 {
     (rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// A uniform index in `0..len` (`len` ≥ 1) by Lemire's multiply-shift: no division, and a
+/// bias below len/2³² (negligible for the set sizes here). Returns 0 for `len` = 0.
+pub(crate) fn random_index<R: RngCore + ?Sized>(rng: &mut R, len: usize) -> usize {
+    ((u64::from(rng.next_u32()) * len as u64) >> 32) as usize
 }
 
 /// The sequential ask/tell interface every algorithm implements (minimisation).

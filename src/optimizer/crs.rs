@@ -1,0 +1,426 @@
+//! Controlled Random Search with a weighted centroid and a weighted reflection: the global
+//! phase of Leonetti et al. 2012, section 4.1.1 (Price's CRS as improved by Brachetti et al.),
+//! `shared/papers/leonetti2012-crs-and-coordinate-line-search.txt`.
+//!
+//! * **Step 0** — m ≥ n + 1 points drawn uniformly in the box D and evaluated: the set S.
+//! * **Step 1** — J_max, J_min over S; stop when J_max − J_min ≤ ε.
+//! * **Step 2** — draw n + 1 distinct points of S at random, θ_{i₀} the worst of them; the
+//!   weighted centroid c = Σ_j w_j θ_{i_j} with w_j = η_j / Σ_r η_r,
+//!   η_j = 1 / (J(θ_{i_j}) − J_min + φ); the trial θ̄ = c − α(θ_{i₀} − c) with
+//!   α = 1 − (J(θ_{i₀}) − Σ_j w_j J(θ_{i_j})) / (J_max − J_min + φ) and
+//!   φ = n (J_max − J_min)² / (J_max⁰ − J_min⁰). If θ̄ ∉ D, go back to Step 2.
+//! * **Steps 3–4** — if J(θ̄) < J_max, θ̄ replaces the worst point of S; otherwise S stays.
+//!
+//! Each evaluation is an episode, so Step 0 is m asks and every later ask is one trial.
+//!
+//! # Documented deviations
+//! * **Step 2 must terminate.** The paper redraws until θ̄ lies in D, which may never happen
+//!   (a set pressed against a face of the box reflects outwards again and again). Here at
+//!   most `max_redraws` draws are made; if none lands inside D, the last trial is projected
+//!   onto D (coordinate-wise clamp): the nearest feasible point along the same reflection.
+//! * **Degenerate initial spread.** If the m initial costs are all equal, φ would divide by
+//!   zero; Step 1 already stops there (J_max − J_min = 0 ≤ ε), so the search reports
+//!   [`Status::Converged`] after Step 0 and the division never happens.
+//! * **Random subsets** are drawn by a partial Fisher–Yates shuffle of a permutation kept
+//!   in the optimizer (2·m bytes), so a draw costs O(n) and needs no stack buffer.
+
+use rand_core::RngCore;
+
+use super::{Best, Bounds, Error, Ledger, Optimizer, Status, Vector, random_index};
+
+/// Parameters of [`ControlledRandomSearch`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CrsConfig {
+    /// ε ≥ 0: stop when J_max − J_min ≤ ε over the set.
+    pub tolerance: f32,
+    /// Evaluations (episodes) allowed, ≥ 1; the m initial points count.
+    pub max_evaluations: u32,
+    /// Trials drawn per ask before projecting onto the box (≥ 1).
+    pub max_redraws: u32,
+}
+
+impl CrsConfig {
+    /// ε = 1e-6, no evaluation limit, 64 redraws.
+    pub const DEFAULT: Self = Self {
+        tolerance: 1e-6,
+        max_evaluations: u32::MAX,
+        max_redraws: 64,
+    };
+
+    /// `Ok` when every parameter is in its range, else the first offending field.
+    pub fn validate(&self) -> Result<(), Error> {
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return Err(Error::InvalidParameter("tolerance"));
+        }
+        if self.max_evaluations == 0 {
+            return Err(Error::InvalidParameter("max_evaluations"));
+        }
+        if self.max_redraws == 0 {
+            return Err(Error::InvalidParameter("max_redraws"));
+        }
+        Ok(())
+    }
+}
+
+impl Default for CrsConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Controlled Random Search over a box with a set of `M` points in R^N (M ≥ N + 1; Price
+/// suggests M ≈ 10(N + 1)). State: (4N + 4)·M bytes plus the bounds.
+///
+/// ```
+/// use ctrl_adapt::optimizer::{Bounds, ControlledRandomSearch, CrsConfig, Optimizer, Status};
+/// use rand_core::SeedableRng;
+///
+/// let bounds = Bounds::<2>::uniform(-2.0, 2.0)?;
+/// let mut crs = ControlledRandomSearch::<2, 30>::try_new(bounds, CrsConfig::DEFAULT)?;
+/// let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(3);
+/// while crs.status() == Status::Running && crs.evaluations() < 3000 {
+///     let t = crs.ask(&mut rng)?;
+///     crs.tell((t[0] - 1.0).powi(2) + (t[1] + 0.5).powi(2))?;
+/// }
+/// assert!(crs.best().unwrap().cost < 1e-4);
+/// # Ok::<(), ctrl_adapt::optimizer::Error>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControlledRandomSearch<const N: usize, const M: usize> {
+    bounds: Bounds<N>,
+    config: CrsConfig,
+    points: [Vector<N>; M],
+    costs: [f32; M],
+    /// Points of S evaluated so far (Step 0 ends at M).
+    filled: usize,
+    /// J_max⁰ − J_min⁰.
+    initial_spread: f32,
+    /// A permutation of 0..M, partially reshuffled for each subset draw.
+    order: [u16; M],
+    status: Status,
+    ledger: Ledger<N>,
+}
+
+impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
+    /// A search over `bounds`; sizes are checked at compile time.
+    pub fn try_new(bounds: Bounds<N>, config: CrsConfig) -> Result<Self, Error> {
+        const { assert!(M > N, "CRS needs m ≥ n + 1 points") };
+        const { assert!(M <= u16::MAX as usize, "at most 65535 points") };
+        config.validate()?;
+        Ok(Self {
+            bounds,
+            config,
+            points: [Vector::zeros(); M],
+            costs: [0.0; M],
+            filled: 0,
+            initial_spread: 0.0,
+            order: core::array::from_fn(|i| i as u16),
+            status: Status::Running,
+            ledger: Ledger::new(config.max_evaluations),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &CrsConfig {
+        &self.config
+    }
+
+    /// The current set S with its costs (only the first [`Self::len`] entries are filled
+    /// during Step 0).
+    pub fn set(&self) -> (&[Vector<N>], &[f32]) {
+        (&self.points[..self.filled], &self.costs[..self.filled])
+    }
+
+    /// Points in S so far.
+    pub fn len(&self) -> usize {
+        self.filled
+    }
+
+    /// Whether S is still empty.
+    pub fn is_empty(&self) -> bool {
+        self.filled == 0
+    }
+
+    /// Indices of the worst and best points of the (full) set.
+    fn extremes(&self) -> (usize, usize) {
+        let (mut worst, mut best) = (0, 0);
+        for (i, &c) in self.costs.iter().enumerate() {
+            if c > self.costs[worst] {
+                worst = i;
+            }
+            if c < self.costs[best] {
+                best = i;
+            }
+        }
+        (worst, best)
+    }
+
+    /// One trial of Step 2 (may lie outside the box).
+    fn trial<R: RngCore + ?Sized>(&mut self, rng: &mut R, j_max: f32, j_min: f32) -> Vector<N> {
+        // Partial Fisher–Yates: order[..=N] becomes a uniform random (N+1)-subset.
+        for k in 0..=N {
+            let pick = k + random_index(rng, M - k);
+            self.order.swap(k, pick);
+        }
+        let subset = &self.order[..=N];
+        let spread = j_max - j_min;
+        let phi = N as f32 * spread * spread / self.initial_spread;
+        let mut worst = subset[0] as usize;
+        let mut eta_sum = 0.0;
+        for &i in subset {
+            let i = i as usize;
+            if self.costs[i] > self.costs[worst] {
+                worst = i;
+            }
+            eta_sum += 1.0 / (self.costs[i] - j_min + phi);
+        }
+        let mut centroid = Vector::<N>::zeros();
+        let mut weighted_cost = 0.0;
+        for &i in subset {
+            let i = i as usize;
+            let w = 1.0 / (self.costs[i] - j_min + phi) / eta_sum;
+            centroid += self.points[i] * w;
+            weighted_cost += w * self.costs[i];
+        }
+        let alpha = 1.0 - (self.costs[worst] - weighted_cost) / (spread + phi);
+        centroid - (self.points[worst] - centroid) * alpha
+    }
+
+    /// Step 1's stopping test on the full set.
+    fn check_stop(&mut self) {
+        if self.filled < M {
+            return;
+        }
+        let (worst, best) = self.extremes();
+        if self.costs[worst] - self.costs[best] <= self.config.tolerance {
+            self.status = Status::Converged;
+        }
+    }
+}
+
+impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, M> {
+    fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
+        if let Some(pending) = self.ledger.pending() {
+            return Ok(*pending);
+        }
+        if self.status != Status::Running {
+            return Err(Error::Stopped);
+        }
+        if self.filled < M {
+            return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
+        }
+        let (worst, best) = self.extremes();
+        let (j_max, j_min) = (self.costs[worst], self.costs[best]);
+        let mut candidate = self.trial(rng, j_max, j_min);
+        let mut redraws = 1;
+        while !self.bounds.contains(&candidate) && redraws < self.config.max_redraws {
+            candidate = self.trial(rng, j_max, j_min);
+            redraws += 1;
+        }
+        Ok(self.ledger.hand_out(self.bounds.clamp(&candidate)))
+    }
+
+    fn tell(&mut self, cost: f32) -> Result<(), Error> {
+        let theta = self.ledger.accept(cost)?;
+        if self.filled < M {
+            self.points[self.filled] = theta;
+            self.costs[self.filled] = cost;
+            self.filled += 1;
+            if self.filled == M {
+                let (worst, best) = self.extremes();
+                self.initial_spread = self.costs[worst] - self.costs[best];
+            }
+        } else {
+            let (worst, _) = self.extremes();
+            if cost < self.costs[worst] {
+                self.points[worst] = theta;
+                self.costs[worst] = cost;
+            }
+        }
+        self.check_stop();
+        if self.status == Status::Running && self.ledger.budget_spent() {
+            self.status = Status::BudgetSpent;
+        }
+        Ok(())
+    }
+
+    fn best(&self) -> Option<Best<N>> {
+        self.ledger.best()
+    }
+
+    fn pending(&self) -> Option<&Vector<N>> {
+        self.ledger.pending()
+    }
+
+    fn evaluations(&self) -> u32 {
+        self.ledger.evaluations()
+    }
+
+    fn status(&self) -> Status {
+        self.status
+    }
+
+    fn bounds(&self) -> &Bounds<N> {
+        &self.bounds
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use rand_core::SeedableRng;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    /// Six-hump camel on [−3, 3] × [−2, 2]: six local minima, the global ones
+    /// f = −1.031628 at (0.0898, −0.7126) and (−0.0898, 0.7126).
+    fn camel(t: &Vector<2>) -> f32 {
+        let (x, y) = (f64::from(t[0]), f64::from(t[1]));
+        ((4.0 - 2.1 * x * x + x.powi(4) / 3.0) * x * x + x * y + (-4.0 + 4.0 * y * y) * y * y)
+            as f32
+    }
+
+    /// Branin on [−5, 10] × [0, 15]: three global minima with f = 0.397887.
+    fn branin(t: &Vector<2>) -> f32 {
+        use core::f64::consts::PI;
+        let (x, y) = (f64::from(t[0]), f64::from(t[1]));
+        let b = 5.1 / (4.0 * PI * PI);
+        let c = 5.0 / PI;
+        ((y - b * x * x + c * x - 6.0).powi(2) + 10.0 * (1.0 - 1.0 / (8.0 * PI)) * x.cos() + 10.0)
+            as f32
+    }
+
+    fn solve(bounds: Bounds<2>, f: fn(&Vector<2>) -> f32, seed: u64) -> (Best<2>, Status, u32) {
+        let config = CrsConfig {
+            tolerance: 1e-5,
+            max_evaluations: 5000,
+            ..CrsConfig::DEFAULT
+        };
+        let mut crs = ControlledRandomSearch::<2, 30>::try_new(bounds, config).unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+        while let Ok(t) = crs.ask(&mut rng) {
+            assert!(bounds.contains(&t));
+            crs.tell(f(&t)).unwrap();
+        }
+        (crs.best().unwrap(), crs.status(), crs.evaluations())
+    }
+
+    /// Checks: from 20 seeds (random initial sets), CRS with m = 30 stops by its own test
+    /// (spread ≤ 1e-5) on the six-hump camel with the global value to 1e-4 and at one of the
+    /// two global minimisers to 1e-2.
+    #[test]
+    fn finds_the_global_minimum_of_the_six_hump_camel() {
+        let bounds = Bounds::try_new([-3.0, -2.0].into(), [3.0, 2.0].into()).unwrap();
+        for seed in 0..20 {
+            let (best, status, evals) = solve(bounds, camel, seed);
+            assert_eq!(status, Status::Converged, "seed {seed} after {evals}");
+            assert!(
+                (best.cost + 1.031_628).abs() < 1e-4,
+                "seed {seed}: {}",
+                best.cost
+            );
+            let at = |x: f32, y: f32| {
+                (best.theta[0] - x).abs() < 1e-2 && (best.theta[1] - y).abs() < 1e-2
+            };
+            assert!(
+                at(0.0898, -0.7126) || at(-0.0898, 0.7126),
+                "seed {seed}: {:?}",
+                best.theta
+            );
+        }
+    }
+
+    /// Checks: the same on Branin (three global minima), value to 1e-4.
+    #[test]
+    fn finds_the_global_minimum_of_branin() {
+        let bounds = Bounds::try_new([-5.0, 0.0].into(), [10.0, 15.0].into()).unwrap();
+        for seed in 0..20 {
+            let (best, status, _) = solve(bounds, branin, seed);
+            assert_eq!(status, Status::Converged);
+            assert!(
+                (best.cost - 0.397_887).abs() < 1e-4,
+                "seed {seed}: {}",
+                best.cost
+            );
+        }
+    }
+
+    #[test]
+    fn equal_initial_costs_stop_after_step_zero() {
+        let b = Bounds::<2>::uniform(0.0, 1.0).unwrap();
+        let mut crs = ControlledRandomSearch::<2, 3>::try_new(b, CrsConfig::DEFAULT).unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(0);
+        for _ in 0..3 {
+            crs.ask(&mut rng).unwrap();
+            crs.tell(7.0).unwrap();
+        }
+        assert_eq!(crs.status(), Status::Converged);
+        assert_eq!(crs.ask(&mut rng), Err(Error::Stopped));
+    }
+
+    #[test]
+    fn config_is_validated() {
+        let b = Bounds::<2>::uniform(0.0, 1.0).unwrap();
+        let bad = |c: CrsConfig| ControlledRandomSearch::<2, 3>::try_new(b, c).unwrap_err();
+        let d = CrsConfig::DEFAULT;
+        assert_eq!(
+            bad(CrsConfig {
+                tolerance: -1.0,
+                ..d
+            }),
+            Error::InvalidParameter("tolerance")
+        );
+        assert_eq!(
+            bad(CrsConfig {
+                max_redraws: 0,
+                ..d
+            }),
+            Error::InvalidParameter("max_redraws")
+        );
+        assert_eq!(
+            bad(CrsConfig {
+                max_evaluations: 0,
+                ..d
+            }),
+            Error::InvalidParameter("max_evaluations")
+        );
+    }
+
+    proptest! {
+        /// Checks, for any sequence of costs (NaN and infinities included) on a set pressed
+        /// against the faces: every candidate is inside the box (the redraw bound and the
+        /// projection hold), non-finite costs are rejected with the state unchanged, the
+        /// best never worsens, and the set always holds the best cost told.
+        #[test]
+        fn candidates_in_bounds_and_bad_costs_change_nothing(
+            costs in prop::collection::vec(proptest::num::f32::ANY, 1..400),
+            seed in any::<u64>(),
+        ) {
+            let b = Bounds::<3>::try_new([0.0, -1.0, 5.0].into(), [1e-3, 1.0, 6.0].into()).unwrap();
+            let config = CrsConfig { max_redraws: 2, ..CrsConfig::DEFAULT };
+            let mut crs = ControlledRandomSearch::<3, 5>::try_new(b, config).unwrap();
+            let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+            let mut best = f32::INFINITY;
+            for cost in costs {
+                let Ok(t) = crs.ask(&mut rng) else { break };
+                prop_assert!(b.contains(&t));
+                let before = crs.clone();
+                if cost.is_finite() {
+                    prop_assert!(crs.tell(cost).is_ok());
+                } else {
+                    prop_assert_eq!(crs.tell(cost), Err(Error::NonFinite("cost")));
+                    prop_assert_eq!(&crs, &before);
+                }
+                let now = crs.best().map_or(f32::INFINITY, |b| b.cost);
+                prop_assert!(now <= best);
+                best = now;
+                if !crs.is_empty() {
+                    let set_min = crs.set().1.iter().copied().fold(f32::INFINITY, f32::min);
+                    prop_assert_eq!(set_min, best);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,252 @@
+//! The two-phase strategy of Leonetti et al. 2012 (sections 4 and 5): a global search
+//! (controlled random search, or SRACOS) run off-line, in simulation, whose best θ
+//! warm-starts the local [`CoordinateSearch`] run on-line, on the robot.
+//!
+//! [`TwoPhase`] chains the two behind the one ask/tell interface: it hands out the global
+//! optimizer's candidates until that stops (or its budget is spent), then starts the
+//! coordinate search *at the global best θ*, whose first candidate is that θ itself, so the
+//! hand-over keeps the best θ and measures it again in the new conditions.
+//!
+//! The phases need not run on the same machine: a firmware that only runs the second phase
+//! builds its [`CoordinateSearch`] from a θ computed on a host (stored in flash, sent over a
+//! link), exactly as [`TwoPhase`] does at the hand-over:
+//!
+//! ```
+//! use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Optimizer};
+//! use rand_core::SeedableRng;
+//! let theta_from_host = [0.12, -0.4, 0.05].into(); // e.g. the host's CRS best
+//! let bounds = Bounds::<3>::uniform(-1.0, 1.0)?;
+//! let mut local = CoordinateSearch::try_new(bounds, theta_from_host, CoordinateConfig::DEFAULT)?;
+//! let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(7);
+//! assert_eq!(local.ask(&mut rng)?, theta_from_host); // phase 2 starts by re-measuring it
+//! # Ok::<(), ctrl_adapt::optimizer::Error>(())
+//! ```
+
+use rand_core::RngCore;
+
+use super::{Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector};
+
+/// Which phase a [`TwoPhase`] is in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Phase {
+    /// The global search is running.
+    Global,
+    /// The local coordinate search is running from the global best.
+    Local,
+}
+
+/// A global optimizer `G` for at most `global_budget` evaluations, then a
+/// [`CoordinateSearch`] from its best θ.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TwoPhase<G, const N: usize> {
+    global: G,
+    global_budget: u32,
+    local_config: CoordinateConfig,
+    local_steps: Vector<N>,
+    local: Option<CoordinateSearch<N>>,
+}
+
+impl<G: Optimizer<N>, const N: usize> TwoPhase<G, N> {
+    /// Runs `global` for at most `global_budget` (≥ 1) evaluations, then a coordinate search
+    /// configured by `local_config`.
+    pub fn try_new(
+        global: G,
+        global_budget: u32,
+        local_config: CoordinateConfig,
+    ) -> Result<Self, Error> {
+        Self::try_with_steps(
+            global,
+            global_budget,
+            Vector::repeat(local_config.initial_step),
+            local_config,
+        )
+    }
+
+    /// As [`TwoPhase::try_new`] with per-coordinate initial steps for the local phase.
+    pub fn try_with_steps(
+        global: G,
+        global_budget: u32,
+        local_steps: Vector<N>,
+        local_config: CoordinateConfig,
+    ) -> Result<Self, Error> {
+        if global_budget == 0 {
+            return Err(Error::InvalidParameter("global_budget"));
+        }
+        local_config.validate()?;
+        if local_steps.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::InvalidParameter("initial_step"));
+        }
+        Ok(Self {
+            global,
+            global_budget,
+            local_config,
+            local_steps,
+            local: None,
+        })
+    }
+
+    /// The current phase.
+    pub fn phase(&self) -> Phase {
+        if self.local.is_some() {
+            Phase::Local
+        } else {
+            Phase::Global
+        }
+    }
+
+    /// The global optimizer (its best is the hand-over point).
+    pub fn global(&self) -> &G {
+        &self.global
+    }
+
+    /// The local search, once started.
+    pub fn local(&self) -> Option<&CoordinateSearch<N>> {
+        self.local.as_ref()
+    }
+
+    /// Starts the local phase now from the global best (on demand, e.g. when the simulator
+    /// result is good enough). Errors while a global candidate is pending, or before the
+    /// global phase has told anything.
+    pub fn hand_over(&mut self) -> Result<(), Error> {
+        if self.local.is_some() {
+            return Ok(());
+        }
+        if self.global.pending().is_some() {
+            return Err(Error::CandidatePending);
+        }
+        let best = self.global.best().ok_or(Error::NoEvaluation)?;
+        self.local = Some(CoordinateSearch::try_with_steps(
+            *self.global.bounds(),
+            best.theta,
+            self.local_steps,
+            self.local_config,
+        )?);
+        Ok(())
+    }
+
+    fn global_done(&self) -> bool {
+        self.global.status() != Status::Running || self.global.evaluations() >= self.global_budget
+    }
+}
+
+impl<G: Optimizer<N>, const N: usize> Optimizer<N> for TwoPhase<G, N> {
+    fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
+        match self.local.as_mut() {
+            Some(local) => local.ask(rng),
+            None => self.global.ask(rng),
+        }
+    }
+
+    fn tell(&mut self, cost: f32) -> Result<(), Error> {
+        match self.local.as_mut() {
+            Some(local) => local.tell(cost),
+            None => {
+                self.global.tell(cost)?;
+                if self.global_done() {
+                    // The global phase has told at least this cost, so it has a best.
+                    self.hand_over()?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// The local phase's best once it has one, else the global best: the two phases may
+    /// score in different conditions (simulator and robot), so their costs are not mixed.
+    fn best(&self) -> Option<Best<N>> {
+        self.local
+            .as_ref()
+            .and_then(|l| l.best())
+            .or_else(|| self.global.best())
+    }
+
+    fn pending(&self) -> Option<&Vector<N>> {
+        match self.local.as_ref() {
+            Some(local) => local.pending(),
+            None => self.global.pending(),
+        }
+    }
+
+    fn evaluations(&self) -> u32 {
+        let local = self.local.as_ref().map_or(0, |l| l.evaluations());
+        self.global.evaluations().saturating_add(local)
+    }
+
+    fn status(&self) -> Status {
+        self.local.as_ref().map_or(Status::Running, |l| l.status())
+    }
+
+    fn bounds(&self) -> &Bounds<N> {
+        self.global.bounds()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::optimizer::{ControlledRandomSearch, CrsConfig};
+    use rand_core::SeedableRng;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    /// Checks: after the global budget the local phase starts, its first candidate is the
+    /// global best θ, the best θ is kept until the local phase improves on it, and the
+    /// local phase then refines a bimodal function to its global minimum.
+    #[test]
+    fn hand_over_keeps_the_best_theta() {
+        // Two basins; the deeper one at (0.6, 0.6).
+        let f = |t: &Vector<2>| {
+            let a = (t - Vector::from([0.6, 0.6])).norm_squared();
+            let b = (t - Vector::from([-0.5, -0.5])).norm_squared();
+            (a * (b + 0.2)).min(10.0)
+        };
+        let bounds = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
+        let crs = ControlledRandomSearch::<2, 20>::try_new(bounds, CrsConfig::DEFAULT).unwrap();
+        let local = CoordinateConfig {
+            initial_step: 0.05,
+            tolerance: 1e-5,
+            ..CoordinateConfig::DEFAULT
+        };
+        let mut two = TwoPhase::try_new(crs, 60, local).unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(11);
+        for _ in 0..60 {
+            assert_eq!(two.phase(), Phase::Global);
+            let t = two.ask(&mut rng).unwrap();
+            two.tell(f(&t)).unwrap();
+        }
+        assert_eq!(two.phase(), Phase::Local);
+        let global_best = two.global().best().unwrap();
+        assert_eq!(two.best(), Some(global_best));
+        assert_eq!(two.ask(&mut rng).unwrap(), global_best.theta);
+        two.tell(f(&global_best.theta)).unwrap();
+        while let Ok(t) = two.ask(&mut rng) {
+            two.tell(f(&t)).unwrap();
+        }
+        let best = two.best().unwrap();
+        assert_eq!(two.status(), Status::Converged);
+        assert!(best.cost <= global_best.cost);
+        assert!(
+            (best.theta - Vector::from([0.6, 0.6])).amax() < 1e-2,
+            "{best:?}"
+        );
+    }
+
+    #[test]
+    fn hand_over_on_demand_waits_for_a_told_candidate() {
+        let bounds = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
+        let crs = ControlledRandomSearch::<2, 5>::try_new(bounds, CrsConfig::DEFAULT).unwrap();
+        let mut two = TwoPhase::try_new(crs, 100, CoordinateConfig::DEFAULT).unwrap();
+        assert_eq!(two.hand_over(), Err(Error::NoEvaluation));
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+        let t = two.ask(&mut rng).unwrap();
+        assert_eq!(two.hand_over(), Err(Error::CandidatePending));
+        two.tell(1.0).unwrap();
+        two.hand_over().unwrap();
+        assert_eq!(two.ask(&mut rng).unwrap(), t);
+        assert_eq!(
+            TwoPhase::try_new(two.global().clone(), 0, CoordinateConfig::DEFAULT).unwrap_err(),
+            Error::InvalidParameter("global_budget")
+        );
+    }
+}
