@@ -9,7 +9,12 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Optimizer, Vector};
+use ctrl_adapt::controller::{Adapter, CorrectedPd, PeriodicPd, StateFeatures};
+use ctrl_adapt::optimizer::{
+    Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Optimizer,
+    Vector,
+};
+use ctrl_adapt::reward::SurveyReward;
 use host_tests::{functions::sphere, run};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -27,11 +32,22 @@ fn coordinate<const N: usize>() -> CoordinateSearch<N> {
     CoordinateSearch::try_new(bounds, Vector::zeros(), config).expect("valid config")
 }
 
-fn bench_coordinate<const N: usize>() {
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+fn crs<const N: usize, const M: usize>() -> ControlledRandomSearch<N, M> {
+    let bounds = Bounds::<N>::uniform(-1.0, 1.0).expect("valid box");
+    let config = CrsConfig {
+        max_evaluations: 20 * N as u32,
+        ..CrsConfig::DEFAULT
+    };
+    ControlledRandomSearch::try_new(bounds, config).expect("valid config")
+}
+
+/// Times ask+tell of the optimizers `make` builds, replaying the costs of one recorded run
+/// on the sphere centred at 0.3 (same seed each replay, so the same candidates).
+fn bench<const N: usize, O: Optimizer<N>>(name: &str, make: impl Fn() -> O) {
+    let seed = 1;
     let costs = run(
-        &mut coordinate::<N>(),
-        &mut rng,
+        &mut make(),
+        &mut Xoshiro128PlusPlus::seed_from_u64(seed),
         usize::MAX,
         |t, _| sphere(t, 0.3),
         |_, _, _| {},
@@ -42,32 +58,64 @@ fn bench_coordinate<const N: usize>() {
     let replays = MIN_PAIRS_PER_REPETITION.div_ceil(costs.len());
     let mut per_pair_ns: Vec<f64> = (0..REPETITIONS)
         .map(|_| {
-            let start = Instant::now();
+            let mut elapsed = std::time::Duration::ZERO;
             for _ in 0..replays {
-                let mut s = black_box(coordinate::<N>());
+                let mut s = black_box(make());
+                let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+                let start = Instant::now();
                 for &cost in &costs {
                     black_box(s.ask(&mut rng).expect("replay stays in step"));
                     s.tell(black_box(cost)).expect("finite cost");
                 }
+                elapsed += start.elapsed();
                 black_box(&s);
             }
-            start.elapsed().as_nanos() as f64 / (replays * costs.len()) as f64
+            elapsed.as_nanos() as f64 / (replays * costs.len()) as f64
         })
         .collect();
     per_pair_ns.sort_by(f64::total_cmp);
     println!(
-        "| CoordinateSearch | {N:>4} | {:>8} | {:>10.1} | {:>10.1} | {:>8} |",
+        "| {name} | {N:>4} | {:>8} | {:>10.1} | {:>10.1} | {:>8} |",
         costs.len(),
         per_pair_ns[REPETITIONS / 2],
         per_pair_ns[0],
-        std::mem::size_of::<CoordinateSearch<N>>(),
+        std::mem::size_of::<O>(),
     );
 }
+
+/// The AUV configuration of the adapter: 18 parameters, state [error, velocity], 3 actions.
+type AuvAdapter<O> = Adapter<O, CorrectedPd<3, 6, 6, 18, StateFeatures<6>>, SurveyReward, 18, 6, 3>;
 
 fn main() {
     println!("host: {} {}", std::env::consts::ARCH, std::env::consts::OS);
     println!("| optimizer | N | evals/run | ns/ask+tell (median) | (min) | size_of (B) |");
     println!("|---|---:|---:|---:|---:|---:|");
-    bench_coordinate::<18>();
-    bench_coordinate::<100>();
+    bench("CoordinateSearch", coordinate::<18>);
+    bench("CoordinateSearch", coordinate::<100>);
+    bench("ControlledRandomSearch (m = 10(n+1))", crs::<18, 190>);
+    bench("ControlledRandomSearch (m = 2(n+1))", crs::<18, 38>);
+    println!();
+    println!("| state | size_of (B) |");
+    println!("|---|---:|");
+    for (name, size) in [
+        (
+            "Adapter<CoordinateSearch<18>, AUV policy, SurveyReward>",
+            size_of::<AuvAdapter<CoordinateSearch<18>>>(),
+        ),
+        (
+            "Adapter<ControlledRandomSearch<18, 38>, AUV policy, SurveyReward>",
+            size_of::<AuvAdapter<ControlledRandomSearch<18, 38>>>(),
+        ),
+        (
+            "CorrectedPd<3, 6, 6, 18, StateFeatures<6>> (AUV policy)",
+            size_of::<CorrectedPd<3, 6, 6, 18, StateFeatures<6>>>(),
+        ),
+        (
+            "PeriodicPd<10, 31> (hopping-leg policy)",
+            size_of::<PeriodicPd<10, 31>>(),
+        ),
+        ("SurveyReward", size_of::<SurveyReward>()),
+    ] {
+        println!("| {name} | {size} |");
+    }
 }
