@@ -1,12 +1,14 @@
 //! Host (std) harness for `ctrl-adapt`: objective functions and a driver that runs any
 //! [`Optimizer`] against them, shared by the integration tests, the demo and the benchmarks.
-//! Plants (AUV, hopping leg) join this crate in later work.
+//! The plants: [`auv`] (survey under a current) and [`hopper`] (hopping leg).
 
 use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;
 
+pub mod auv;
 pub mod double_integrator;
 pub mod functions;
+pub mod hopper;
 
 /// What one optimisation run produced.
 #[derive(Debug, Clone, PartialEq)]

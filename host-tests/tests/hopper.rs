@@ -1,0 +1,190 @@
+//! Physical checks of the hopping-leg plant and of the nominal controller the experiments start
+//! from (Hwangbo et al., ROCK*, section IV): stable hopping at 0.6 m on flat ground, and an
+//! apex that varies by several centimetres over the paper's random blocks.
+
+use host_tests::hopper::{BLOCK_HEIGHTS, Hopper, HopperConfig, NominalHopping};
+
+/// Hops left out of the apex statistics: the start (a drop from rest at 0.6 m) is a transient.
+const TRANSIENT_HOPS: usize = 3;
+
+/// Runs one episode of the nominal controller and returns the plant at its end.
+fn nominal_episode(config: HopperConfig, seed: u64) -> Hopper {
+    let nominal = NominalHopping::TUNED;
+    let mut hopper = Hopper::new(config, seed);
+    for _ in 0..hopper.steps_per_episode() {
+        let tau = nominal.torques(&config, &hopper.state());
+        hopper.step(tau);
+    }
+    hopper
+}
+
+/// (max − min, standard deviation, mean) of the apexes after the transient.
+fn apex_spread(hopper: &Hopper) -> (f64, f64, f64) {
+    let a = &hopper.apex_heights()[TRANSIENT_HOPS..];
+    let n = a.len() as f64;
+    let mean = a.iter().sum::<f64>() / n;
+    let sd = (a.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+    let max = a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let min = a.iter().copied().fold(f64::INFINITY, f64::min);
+    (max - min, sd, mean)
+}
+
+/// Checks: with zero torques the whole leg falls freely from rest: after 0.1 s (before the
+/// foot lands) the body moves at −g·t and the joints have not moved (uniform gravity exerts
+/// no torque about the joints), to 1e-9.
+#[test]
+fn a_limp_leg_falls_freely() {
+    let mut hopper = Hopper::new(HopperConfig::flat(), 1);
+    let q0 = hopper.state().joint_angles;
+    for _ in 0..100 {
+        hopper.step([0.0, 0.0]);
+    }
+    let s = hopper.state();
+    assert!(!s.contact);
+    let g = hopper.config().gravity;
+    assert!((s.body_velocity + g * s.time).abs() < 1e-9, "{s:?}");
+    assert!((s.joint_angles[0] - q0[0]).abs() < 1e-9 && (s.joint_angles[1] - q0[1]).abs() < 1e-9);
+}
+
+/// Checks: standing still on the ground under a joint PD, the leg comes to rest with the foot
+/// sunk by total weight / ground stiffness (within 2 %), stuck under the hip (|x_f| < 1 mm).
+#[test]
+fn standing_still_the_ground_carries_the_weight() {
+    let base = HopperConfig::flat();
+    let knee = -1.0;
+    let config = HopperConfig {
+        initial_knee: knee,
+        initial_height: base.leg_length(knee),
+        ..base
+    };
+    let mut hopper = Hopper::new(config, 1);
+    let refs = [config.hip_angle_for_foot_under_hip(knee), knee];
+    for _ in 0..3000 {
+        let s = hopper.state();
+        let tau: [f64; 2] = core::array::from_fn(|j| {
+            30.0 * (refs[j] - s.joint_angles[j]) - 1.0 * s.joint_velocities[j]
+        });
+        hopper.step(tau);
+    }
+    let s = hopper.state();
+    assert!(s.contact && s.body_velocity.abs() < 1e-4, "{s:?}");
+    let sink = -hopper.foot_position()[1];
+    let expected = config.total_mass() * config.gravity / config.ground_stiffness;
+    assert!(
+        (sink - expected).abs() < 0.02 * expected,
+        "sink {sink}, expected {expected}"
+    );
+    assert!(hopper.foot_position()[0].abs() < 1e-3);
+}
+
+/// Checks: the foot is under the hip at the hip angle the config gives for any knee angle in
+/// range, and for equal segments that angle is −q_k/2.
+#[test]
+fn hip_reference_puts_the_foot_under_the_hip() {
+    let config = HopperConfig::flat();
+    for i in 0..=20 {
+        let knee = config.knee_range[0]
+            + (config.knee_range[1] - config.knee_range[0]) * f64::from(i) / 20.0;
+        let hopper = Hopper::new(
+            HopperConfig {
+                initial_knee: knee,
+                ..config
+            },
+            1,
+        );
+        assert!(hopper.foot_position()[0].abs() < 1e-12);
+        assert!((config.hip_angle_for_foot_under_hip(knee) + knee / 2.0).abs() < 1e-12);
+    }
+}
+
+/// Checks: commanded torques beyond the limit are saturated and counted, non-finite ones are
+/// applied as 0 and counted, and the state stays finite.
+#[test]
+fn torque_limits_are_enforced_and_counted() {
+    let mut hopper = Hopper::new(HopperConfig::flat(), 1);
+    hopper.step([100.0, -5.0]);
+    assert_eq!(hopper.applied_torques(), [30.0, -5.0]);
+    assert_eq!(hopper.stats().torque_limit_steps, 1);
+    hopper.step([f64::NAN, f64::INFINITY]);
+    assert_eq!(hopper.applied_torques(), [0.0, 0.0]);
+    assert_eq!(hopper.stats().torque_limit_steps, 2);
+    let s = hopper.state();
+    assert!(s.body_height.is_finite() && s.joint_angles.iter().all(|q| q.is_finite()));
+}
+
+/// Checks (the initial policy of the paper): on flat ground the nominal controller hops
+/// stably for 12 s: after the first three hops every apex is within 1 cm of the others and
+/// the mean within 1 cm of the set height 0.6 m; the leg never collapses nor touches a joint
+/// stop nor saturates a torque.
+#[test]
+fn nominal_controller_hops_stably_on_flat_ground() {
+    let hopper = nominal_episode(HopperConfig::flat(), 1);
+    let (range, sd, mean) = apex_spread(&hopper);
+    let stats = hopper.stats();
+    println!(
+        "flat ground: {} hops, apex mean {mean:.4} m, range {:.2} cm, sd {:.2} cm; {stats:?}",
+        stats.hops,
+        range * 100.0,
+        sd * 100.0
+    );
+    assert!(hopper.apex_heights().len() >= 15);
+    assert!(range < 0.01 && (mean - 0.6).abs() < 0.01);
+    assert!(!hopper.collapsed());
+    assert_eq!((stats.joint_limit_steps, stats.torque_limit_steps), (0, 0));
+}
+
+/// Checks (paper: "the apex height from initial policy fluctuates by about 5 cm in the
+/// presence of 5.5 cm block"): over the random 0 / 1.5 / 5.5 cm ground, for each of seeds
+/// 1..=5, the nominal controller keeps hopping (no collapse, ≥ 15 hops in 12 s) and its apex
+/// (after the first three hops) spreads by more than 3 cm (max − min). Prints the figures.
+#[test]
+fn random_blocks_make_the_nominal_apex_vary_by_several_cm() {
+    let mut ranges = Vec::new();
+    for seed in 1..=5 {
+        let hopper = nominal_episode(HopperConfig::default(), seed);
+        let (range, sd, mean) = apex_spread(&hopper);
+        println!(
+            "blocks, seed {seed}: {} hops, apex mean {mean:.3} m, range {:.1} cm, sd {:.1} cm",
+            hopper.apex_heights().len(),
+            range * 100.0,
+            sd * 100.0
+        );
+        assert!(!hopper.collapsed() && hopper.apex_heights().len() >= 15);
+        assert!(range > 0.03, "seed {seed}: range {range}");
+        ranges.push(range);
+    }
+    ranges.sort_by(f64::total_cmp);
+    println!(
+        "median apex range over seeds 1..=5: {:.1} cm",
+        ranges[2] * 100.0
+    );
+}
+
+/// Checks: the ground changes only at a flight apex and only to heights of the set; over an
+/// episode every block height of the set occurs; on the flat config it never changes; the
+/// same seed replays the same block sequence and another seed gives another.
+#[test]
+fn ground_changes_at_apexes_from_the_set_and_is_seeded() {
+    let nominal = NominalHopping::TUNED;
+    let sequence = |config: HopperConfig, seed: u64| {
+        let mut hopper = Hopper::new(config, seed);
+        let mut grounds = vec![hopper.state().ground_height];
+        for _ in 0..hopper.steps_per_episode() {
+            let before = hopper.state().ground_height;
+            hopper.step(nominal.torques(&config, &hopper.state()));
+            let after = hopper.state().ground_height;
+            if after != before {
+                assert!(hopper.new_apex().is_some(), "changed outside an apex");
+                assert!(!hopper.state().contact);
+                grounds.push(after);
+            }
+        }
+        grounds
+    };
+    let a = sequence(HopperConfig::default(), 11);
+    assert!(a.iter().all(|h| BLOCK_HEIGHTS.contains(h)));
+    assert!(BLOCK_HEIGHTS.iter().all(|h| a.contains(h)), "{a:?}");
+    assert_eq!(a, sequence(HopperConfig::default(), 11));
+    assert_ne!(a, sequence(HopperConfig::default(), 12));
+    assert_eq!(sequence(HopperConfig::flat(), 11), vec![0.0]);
+}
