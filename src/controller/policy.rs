@@ -223,10 +223,16 @@ impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
     }
 }
 
-/// A PD on A axes whose output is corrected: u = sat(k_p e − k_d ẏ + c), the AUV policy.
+/// A PD on A axes whose output is corrected: u = sat(sat(k_p e − k_d ẏ) + c), the AUV policy.
 ///
 /// State layout (S = 2A): [error = setpoint − measurement (A) | measured rate ẏ (A)]; the PD
 /// differentiates on measurement (ė = −ẏ). The nominal action is u = sat(k_p e − k_d ẏ).
+///
+/// The correction is added to the controller's *output*, after the PD's own saturation ("the
+/// actions are the continuous velocities summed to the controller's one", Leonetti et al.
+/// 2012, section 5), and the sum is saturated to the same limit. Adding c inside the PD's
+/// saturation instead would make the correction powerless whenever the PD saturates, which
+/// on the AUV is the whole approach to the target (k_p · 5 m ≫ v_max).
 ///
 /// ```
 /// use ctrl_adapt::controller::{Controller, CorrectedPd, LinearPolicy, Pd, StateFeatures};
@@ -290,7 +296,7 @@ where
 
     fn corrected(&self, theta: &Vector<P>, state: &Vector<S>, time: f32) -> Vector<A> {
         let c = self.policy.correction(theta, state, time);
-        self.pd.saturate(&(self.unsaturated(state) + c))
+        self.pd.saturate(&(self.nominal(state, time) + c))
     }
 }
 
@@ -467,6 +473,22 @@ mod tests {
             let b = leg.nominal(&q, t);
             assert!((a - b).amax() < 1e-5);
         }
+    }
+
+    /// Checks: the correction acts on the PD's saturated output, so it still changes the
+    /// action while the PD saturates (k_p e = 0.3·5 = 1.5 > limit 1): a correction of −0.4
+    /// gives 1 − 0.4 = 0.6, not sat(1.5 − 0.4) = 1; the sum is saturated again.
+    #[test]
+    fn correction_is_added_to_the_saturated_pd_output() {
+        let auv = auv();
+        let s = Vector::<6>::from([5.0, -5.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(auv.nominal(&s, 0.0), Vector::from([1.0, -1.0, 0.0]));
+        let mut theta = Vector::<18>::zeros();
+        theta[0] = -1.0; // c_x = −e_x, clamped to −0.4
+        theta[7] = 1.0; // c_y = e_y, clamped to −0.4: −1.4 saturates to −1
+        theta[12] = 1.0; // c_z = e_x, clamped to +0.4
+        let u = auv.corrected(&theta, &s, 0.0);
+        assert!((u - Vector::from([0.6, -1.0, 0.4])).amax() < 1e-6, "{u}");
     }
 
     #[test]
