@@ -6,9 +6,12 @@ use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;
 
 pub mod auv;
+pub mod auv_task;
 pub mod double_integrator;
 pub mod functions;
 pub mod hopper;
+pub mod hopper_task;
+pub mod plots;
 
 /// What one optimisation run produced.
 #[derive(Debug, Clone, PartialEq)]

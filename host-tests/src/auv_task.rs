@@ -1,0 +1,263 @@
+//! The AUV survey task run through the library's own controller stack: [`Adapter`] over a
+//! [`CorrectedPd`] (the vehicle's position PD plus the 18-parameter linear correction of
+//! Leonetti et al. 2012, section 5) scored by [`SurveyReward`], driving the f64 [`Auv`] plant.
+//!
+//! The controller boundary is `f32`, as on the target: every tick the plant's measured state
+//! becomes the policy's state `[target − p, v]` (6 × f32) and the adapter's velocity command
+//! (3 × f32) goes back to the plant as f64. The reward is fed the *true* position error, so
+//! measurement noise (when on) perturbs the controller, not the score.
+//!
+//! One tick observes the state the command is computed from (before the step): the survey
+//! reward sees the positions at t = 0, 0.1, …, 23.9 s.
+
+use ctrl_adapt::controller::{
+    Adapter, AdapterConfig, CorrectedPd, EpisodeReport, LinearPolicy, Pd, StateFeatures,
+};
+use ctrl_adapt::optimizer::{
+    Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Error,
+    Optimizer, Vector,
+};
+use ctrl_adapt::reward::SurveyReward;
+use rand_core::RngCore;
+
+use crate::auv::{Auv, AuvConfig};
+
+/// Nominal PD gain on the position error (1/s), all axes.
+pub const KP: f32 = 0.3;
+/// Nominal PD gain on the velocity, all axes.
+pub const KD: f32 = 0.2;
+/// Saturation of each velocity-command component (m/s).
+pub const V_MAX: f32 = 0.5;
+/// Clamp of each component of the learned correction (m/s).
+pub const C_MAX: f32 = 0.5;
+/// Box of every entry of W: [−W_BOUND, W_BOUND]^18.
+pub const W_BOUND: f32 = 1.0;
+/// The survey radius D of the paper's reward (m).
+pub const RADIUS: f32 = 1.0;
+/// Parameters of the policy: W is 3 × 6.
+pub const P: usize = 18;
+/// Initial step of the coordinate search on every weight (a eighth of the box width).
+pub const LOCAL_STEP: f32 = 0.25;
+/// Tolerance of the coordinate search.
+pub const LOCAL_TOLERANCE: f32 = 1e-3;
+/// Points of the global phase's controlled random search (the paper's 100 initial samples).
+pub const CRS_POINTS: usize = 100;
+
+/// The vehicle's controller: PD on position producing velocity commands, corrected by W·φ.
+pub type AuvController = CorrectedPd<3, 6, 6, P, StateFeatures<6>>;
+
+/// The adapter of the AUV experiments over optimizer `O`.
+pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyReward, P, 6, 3>;
+
+/// The global phase's optimizer: CRS with the paper's 100 initial samples.
+pub type GlobalSearch = ControlledRandomSearch<P, CRS_POINTS>;
+
+/// kp = 0.3, kd = 0.2, |v_cmd| ≤ 0.5 m/s per component, correction within ±0.5 m/s.
+pub fn controller() -> AuvController {
+    let pd = Pd::<3>::try_new(Vector::repeat(KP), Vector::repeat(KD))
+        .and_then(|pd| pd.with_limit(Vector::repeat(V_MAX)))
+        .expect("valid PD gains");
+    let policy = LinearPolicy::try_new(StateFeatures::identity(), Vector::repeat(C_MAX))
+        .expect("valid envelope");
+    CorrectedPd::new(pd, policy)
+}
+
+/// The box [−1, 1]^18 of W.
+pub fn bounds() -> Bounds<P> {
+    Bounds::uniform(-W_BOUND, W_BOUND).expect("valid box")
+}
+
+/// The adapter's configuration for `learning_episodes` learning episodes. A failed episode
+/// (never expected here: the plant's state is always finite) is told 10, more than the
+/// start's 7.2 m distance to the target.
+pub fn adapter_config(learning_episodes: u32) -> AdapterConfig {
+    AdapterConfig {
+        dt: 0.1,
+        failure_cost: 10.0,
+        max_faulty_ticks: 0,
+        learning_episodes,
+    }
+}
+
+/// An adapter over `optimizer` deploying `initial` before anything is told.
+pub fn adapter<O: Optimizer<P>>(
+    optimizer: O,
+    learning_episodes: u32,
+    initial: Vector<P>,
+) -> Result<AuvAdapter<O>, Error> {
+    Adapter::try_new(
+        optimizer,
+        controller(),
+        SurveyReward::try_new(RADIUS)?,
+        adapter_config(learning_episodes),
+        initial,
+    )
+}
+
+/// The local phase's optimizer: coordinate search from `start`, step 0.25, tolerance 1e-3.
+pub fn coordinate_search(start: Vector<P>, budget: u32) -> Result<CoordinateSearch<P>, Error> {
+    CoordinateSearch::try_new(bounds(), start, local_config(budget))
+}
+
+/// The coordinate-search configuration of the local phase with `budget` episodes.
+pub fn local_config(budget: u32) -> CoordinateConfig {
+    CoordinateConfig {
+        initial_step: LOCAL_STEP,
+        tolerance: LOCAL_TOLERANCE,
+        max_evaluations: budget,
+        ..CoordinateConfig::DEFAULT
+    }
+}
+
+/// The global phase's CRS with `budget` episodes (tolerance 1e-6).
+pub fn global_search(budget: u32) -> Result<GlobalSearch, Error> {
+    ControlledRandomSearch::try_new(
+        bounds(),
+        CrsConfig {
+            max_evaluations: budget,
+            ..CrsConfig::DEFAULT
+        },
+    )
+}
+
+/// The "real" and "simulator" plants of the experiments: the paper's currents (0.6 and
+/// 0.5 m/s) with seeded disturbances so that episodes are not exactly repeatable:
+/// position noise 2 cm, velocity noise 1 cm/s, current turbulence 3 cm/s (5 s correlation).
+/// The seed selects the disturbance sequence.
+pub fn plant(config: AuvConfig, seed: u64) -> Auv {
+    Auv::new(disturbed(config), seed)
+}
+
+/// `config` with the experiments' disturbances switched on (see [`plant`]).
+pub fn disturbed(config: AuvConfig) -> AuvConfig {
+    AuvConfig {
+        position_noise_std: 0.02,
+        velocity_noise_std: 0.01,
+        turbulence_std: 0.03,
+        ..config
+    }
+}
+
+/// What one episode did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AuvEpisode {
+    /// The adapter's report (θ, mode, cost, what was told).
+    pub report: EpisodeReport<P>,
+    /// The survey's minimum distance to the target d (m).
+    pub min_distance: f32,
+    /// Time spent within D (s).
+    pub time_within: f32,
+    /// The vehicle's true positions at every tick and at the end, when recorded.
+    pub trajectory: Option<Vec<[f64; 3]>>,
+}
+
+impl AuvEpisode {
+    /// The paper's reward J = −cost.
+    pub fn reward(&self) -> f32 {
+        -self.report.cost
+    }
+}
+
+/// The policy's state `[target − p, v]` from the plant's measurement, in f32.
+pub fn policy_state(auv: &Auv) -> Vector<6> {
+    let m = auv.measurement();
+    let t = auv.target();
+    Vector::from_fn(|i, _| {
+        if i < 3 {
+            (t[i] - m.position[i]) as f32
+        } else {
+            m.velocity[i - 3] as f32
+        }
+    })
+}
+
+/// The true position error (target − p), for the reward.
+pub fn true_error(auv: &Auv) -> Vector<3> {
+    let (t, p) = (auv.target(), auv.state().position);
+    Vector::from_fn(|i, _| (t[i] - p[i]) as f32)
+}
+
+/// Runs one episode of `adapter` on `auv` (reset first): begin, one control tick per plant
+/// step, end. Records the true trajectory if `record`.
+pub fn run_episode<O: Optimizer<P>, G: RngCore>(
+    adapter: &mut AuvAdapter<O>,
+    auv: &mut Auv,
+    rng: &mut G,
+    record: bool,
+) -> Result<AuvEpisode, Error> {
+    auv.reset();
+    adapter.begin_episode(rng)?;
+    let mut trajectory = record.then(|| Vec::with_capacity(auv.steps_per_episode() + 1));
+    for _ in 0..auv.steps_per_episode() {
+        if let Some(t) = trajectory.as_mut() {
+            t.push(auv.state().position);
+        }
+        let u = adapter.control(&policy_state(auv), &true_error(auv));
+        auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
+    }
+    if let Some(t) = trajectory.as_mut() {
+        t.push(auv.state().position);
+    }
+    let (min_distance, time_within) = (
+        adapter.shaper().min_distance(),
+        adapter.shaper().time_within(),
+    );
+    let report = adapter.end_episode()?;
+    Ok(AuvEpisode {
+        report,
+        min_distance,
+        time_within,
+        trajectory,
+    })
+}
+
+/// Runs `episodes` episodes of `adapter` on `auv`, calling `on_episode` after each.
+pub fn run_episodes<O: Optimizer<P>, G: RngCore>(
+    adapter: &mut AuvAdapter<O>,
+    auv: &mut Auv,
+    rng: &mut G,
+    episodes: usize,
+    mut on_episode: impl FnMut(&AuvEpisode),
+) -> Result<Vec<AuvEpisode>, Error> {
+    (0..episodes)
+        .map(|_| {
+            let e = run_episode(adapter, auv, rng, false)?;
+            on_episode(&e);
+            Ok(e)
+        })
+        .collect()
+}
+
+/// The first episode (1-based) whose reward is above −`RADIUS`·1 = −1 (cost below 1), if any.
+pub fn episodes_to_success(episodes: &[AuvEpisode]) -> Option<usize> {
+    episodes
+        .iter()
+        .position(|e| e.report.cost < RADIUS)
+        .map(|k| k + 1)
+}
+
+/// The best reward after each episode (non-decreasing).
+pub fn best_so_far(episodes: &[AuvEpisode]) -> Vec<f32> {
+    let mut best = f32::NEG_INFINITY;
+    episodes
+        .iter()
+        .map(|e| {
+            best = best.max(e.reward());
+            best
+        })
+        .collect()
+}
+
+/// Runs one episode of the fixed policy `theta` on `auv` (an adapter in
+/// [`Mode::Deploy`](ctrl_adapt::controller::Mode::Deploy) that explores nothing), recording
+/// the trajectory if `record`.
+pub fn evaluate<G: RngCore>(
+    theta: Vector<P>,
+    auv: &mut Auv,
+    rng: &mut G,
+    record: bool,
+) -> Result<AuvEpisode, Error> {
+    let mut deployed = adapter(coordinate_search(theta, 1)?, 1, theta)?;
+    deployed.set_mode(ctrl_adapt::controller::Mode::Deploy)?;
+    run_episode(&mut deployed, auv, rng, record)
+}

@@ -1,0 +1,136 @@
+//! The hopping experiment of Hwangbo et al., section IV, through the library's own
+//! controller stack (`Adapter` over `PeriodicPd`, 31 parameters, `ApexHeightCost`), learning
+//! with the library's `CoordinateSearch` (ROCK* is not available). Heavy: run in release,
+//!
+//! ```text
+//! cargo test --release -p host-tests --test hopper_experiments -- --nocapture
+//! ```
+//!
+//! Learning: 400 episodes of 12 s, every one on the same training course (the block
+//! sequence of seed 1001, replayed: common random numbers). Evaluation: the initial and the
+//! learned policy on 5 courses never used in learning (seeds 10 001–10 005).
+
+use std::sync::OnceLock;
+
+use ctrl_adapt::optimizer::{Optimizer, Vector};
+use host_tests::hopper_task::{
+    self, HopEpisode, LEARNING_EPISODES, P, coordinate_search, evaluate, plant, run_episode,
+    training_course,
+};
+use rand_core::SeedableRng;
+use rand_xoshiro::Xoshiro128PlusPlus;
+
+const EVAL_SEEDS: std::ops::RangeInclusive<u64> = 10_001..=10_005;
+
+struct Learned {
+    theta: Vector<P>,
+    costs: Vec<f32>,
+}
+
+/// The learning run, shared by the tests of this file (computed once).
+fn learned() -> &'static Learned {
+    static LEARNED: OnceLock<Learned> = OnceLock::new();
+    LEARNED.get_or_init(|| {
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+        let search = coordinate_search(Vector::zeros(), LEARNING_EPISODES).unwrap();
+        let mut adapter = hopper_task::adapter(search, LEARNING_EPISODES, Vector::zeros()).unwrap();
+        let costs: Vec<f32> = (0..LEARNING_EPISODES)
+            .map(|_| {
+                let e = run_episode(&mut adapter, &mut training_course(), &mut rng, false);
+                e.unwrap().report.cost
+            })
+            .collect();
+        let best = adapter.optimizer().best().unwrap();
+        println!(
+            "learning: {} episodes, best training cost {:.3e} (first {:.3e}), θ = {:.3?}",
+            LEARNING_EPISODES,
+            best.cost,
+            costs_first(&costs),
+            best.theta.as_slice()
+        );
+        Learned {
+            theta: best.theta,
+            costs,
+        }
+    })
+}
+
+fn costs_first(costs: &[f32]) -> f32 {
+    costs.first().copied().unwrap_or(f32::NAN)
+}
+
+fn evaluations(theta: Vector<P>) -> Vec<HopEpisode> {
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(2);
+    EVAL_SEEDS
+        .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false).unwrap())
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn spreads(episodes: &[HopEpisode]) -> Vec<f64> {
+    episodes.iter().map(HopEpisode::apex_spread).collect()
+}
+
+/// Checks, on 5 courses unseen in learning:
+/// * the initial policy (tuned on flat ground) keeps hopping and its apex varies by several
+///   cm: spread (max − min after 3 hops) above 3 cm on every course (measured 7.2–8.6 cm);
+/// * after 400 learning episodes the learned policy keeps hopping stably (no collapse, ≥ 15
+///   hops in 12 s) and its spread is at most 3 cm on every course and at most 40 % of the
+///   initial policy's median (measured 2.1–2.4 cm, median 2.2 cm against 7.6 cm).
+///
+/// The paper's "about 1 cm" is NOT reached with the coordinate search (see
+/// `paper_target_apex_spread_at_most_1_5_cm` and docs/experiments.md).
+#[test]
+fn learning_reduces_the_apex_spread_and_keeps_hopping() {
+    let before = evaluations(Vector::zeros());
+    let learned = learned();
+    let after = evaluations(learned.theta);
+    println!("course | initial: hops, mean (m), spread (cm) | learned: hops, mean, spread");
+    for ((s, b), a) in EVAL_SEEDS.zip(&before).zip(&after) {
+        println!(
+            "{s} | {}, {:.3}, {:.1} | {}, {:.3}, {:.1}",
+            b.hops(),
+            b.apex_mean(),
+            b.apex_spread() * 100.0,
+            a.hops(),
+            a.apex_mean(),
+            a.apex_spread() * 100.0
+        );
+    }
+    let (mb, ma) = (median(spreads(&before)), median(spreads(&after)));
+    println!(
+        "median apex spread: initial {:.2} cm, learned {:.2} cm; training cost {:.3e} -> {:.3e}",
+        mb * 100.0,
+        ma * 100.0,
+        costs_first(&learned.costs),
+        learned.costs.iter().copied().fold(f32::INFINITY, f32::min)
+    );
+    for b in &before {
+        assert!(b.hops_stably(), "initial policy stopped hopping");
+        assert!(b.apex_spread() > 0.03, "initial spread {}", b.apex_spread());
+    }
+    for a in &after {
+        assert!(a.hops_stably(), "learned policy stopped hopping");
+        assert!(
+            a.apex_spread() <= 0.03,
+            "learned spread {}",
+            a.apex_spread()
+        );
+    }
+    assert!(ma <= 0.4 * mb, "median spread {ma} vs initial {mb}");
+}
+
+/// The paper's target: after learning the apex varies by about 1 cm (≤ 1.5 cm here, median
+/// over the 5 unseen courses). NOT met by the coordinate search on this plant (measured
+/// median 2.2 cm); kept as the acceptance check for a better optimizer (SRACOS, CEM).
+#[test]
+#[ignore = "not met: measured 2.2 cm median with CoordinateSearch, see docs/experiments.md"]
+fn paper_target_apex_spread_at_most_1_5_cm() {
+    let after = evaluations(learned().theta);
+    let ma = median(spreads(&after));
+    assert!(ma <= 0.015, "median learned spread {:.2} cm", ma * 100.0);
+}
