@@ -8,7 +8,8 @@
 pub mod optimizer;
 
 pub use optimizer::{
-    Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector,
+    Best, Bounds, CemConfig, CoordinateConfig, CoordinateSearch, DiagonalCem, Error, Optimizer,
+    Status, Vector, Weighting,
 };
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
@@ -22,4 +23,7 @@ const _: () = {
     assert_format::<Bounds<3>>();
     assert_format::<CoordinateConfig>();
     assert_format::<CoordinateSearch<3>>();
+    assert_format::<Weighting>();
+    assert_format::<CemConfig>();
+    assert_format::<DiagonalCem<3, 4, 2>>();
 };
