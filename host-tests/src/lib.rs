@@ -5,6 +5,7 @@
 use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;
 
+pub mod arm;
 pub mod auv;
 pub mod double_integrator;
 pub mod functions;
