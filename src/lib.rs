@@ -10,8 +10,8 @@ pub mod optimizer;
 pub mod reward;
 
 pub use optimizer::{
-    Best, Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Error,
-    Optimizer, Status, TwoPhase, Vector,
+    Best, Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
+    DiagonalCem, Error, Optimizer, Status, TwoPhase, Vector, Weighting,
 };
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
@@ -46,4 +46,7 @@ const _: () = {
             3,
         >,
     >();
+    assert_format::<Weighting>();
+    assert_format::<CemConfig>();
+    assert_format::<DiagonalCem<3, 4, 2>>();
 };

@@ -38,10 +38,12 @@ use core::fmt;
 use nalgebra::SVector;
 use rand_core::RngCore;
 
+pub mod cem;
 pub mod coordinate;
 pub mod crs;
 pub mod two_phase;
 
+pub use cem::{CemConfig, DiagonalCem, Weighting};
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
 pub use crs::{ControlledRandomSearch, CrsConfig};
 pub use two_phase::TwoPhase;
@@ -227,6 +229,21 @@ pub(crate) fn random_index<R: RngCore + ?Sized>(rng: &mut R, len: usize) -> usiz
     ((u64::from(rng.next_u32()) * len as u64) >> 32) as usize
 }
 
+/// Two independent standard normal `f32` draws from two `u32`s (the Box–Muller transform
+/// z = √(−2 ln u₁)·(cos 2πu₂, sin 2πu₂)).
+///
+/// u₁ is taken in (0, 1] (24 bits plus one, over 2²⁴), so the logarithm never sees 0 and
+/// the radius is at most √(48 ln 2) ≈ 5.77: the draws are a normal truncated at radius 5.77
+/// (probability 2⁻²⁴ ≈ 6·10⁻⁸ of the exact normal lies beyond). Exactly two `u32` per pair,
+/// so the RNG advances the same way for every value.
+pub fn normal_pair_f32<R: RngCore + ?Sized>(rng: &mut R) -> [f32; 2] {
+    let u1 = ((rng.next_u32() >> 8) + 1) as f32 * (1.0 / 16_777_216.0);
+    let u2 = unit_f32(rng);
+    let radius = libm::sqrtf(-2.0 * libm::logf(u1));
+    let (sin, cos) = libm::sincosf(core::f32::consts::TAU * u2);
+    [radius * cos, radius * sin]
+}
+
 /// The sequential ask/tell interface every algorithm implements (minimisation).
 ///
 /// `N` is the number of parameters, fixed at compile time so the optimizer's memory is
@@ -366,6 +383,51 @@ mod tests {
             b.check(&Vector::from([2.0, 0.0, 1e-3, 0.0]), "theta"),
             Err(Error::OutOfBounds("theta"))
         );
+    }
+
+    /// An RNG that always returns the same word, to reach the ends of the uniform ranges.
+    struct Constant(u32);
+
+    impl RngCore for Constant {
+        fn next_u32(&mut self) -> u32 {
+            self.0
+        }
+        fn next_u64(&mut self) -> u64 {
+            u64::from(self.0)
+        }
+        fn fill_bytes(&mut self, dst: &mut [u8]) {
+            dst.fill(self.0 as u8);
+        }
+    }
+
+    /// Checks: 200,000 Box–Muller draws have mean 0 ± 0.01, variance 1 ± 0.01, the normal's
+    /// share within one σ (68.3 ± 0.5 %), and the extreme RNG words give finite draws with
+    /// radius at most √(48 ln 2).
+    #[test]
+    fn normal_pairs_are_standard_normal_and_finite() {
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(11);
+        let draws: std::vec::Vec<f32> = (0..100_000)
+            .flat_map(|_| normal_pair_f32(&mut rng))
+            .collect();
+        let n = draws.len() as f64;
+        let mean = draws.iter().map(|&z| f64::from(z)).sum::<f64>() / n;
+        let var = draws
+            .iter()
+            .map(|&z| (f64::from(z) - mean).powi(2))
+            .sum::<f64>()
+            / n;
+        let within = draws.iter().filter(|z| z.abs() < 1.0).count() as f64 / n;
+        assert!(
+            mean.abs() < 0.01 && (var - 1.0).abs() < 0.01,
+            "{mean} {var}"
+        );
+        assert!((within - 0.6827).abs() < 0.005, "{within}");
+        let limit = libm::sqrtf(48.0 * core::f32::consts::LN_2) * 1.0001;
+        for word in [0, 1, 255, 256, u32::MAX / 2, u32::MAX] {
+            let [a, b] = normal_pair_f32(&mut Constant(word));
+            assert!(a.is_finite() && b.is_finite(), "{word}: {a} {b}");
+            assert!(libm::hypotf(a, b) <= limit, "{word}: {a} {b}");
+        }
     }
 
     #[test]

@@ -42,3 +42,18 @@ pub fn rosenbrock<const N: usize>(theta: &Vector<N>) -> f32 {
         })
         .sum::<f64>() as f32
 }
+
+/// Ackley −20 exp(−0.2 √(Σ (θ_i − c)²/N)) − exp(Σ cos(2π(θ_i − c))/N) + 20 + e, minimum 0 at
+/// θ = c·1, with a local minimum near every point of the integer lattice around c.
+pub fn ackley<const N: usize>(theta: &Vector<N>, centre: f64) -> f32 {
+    let n = N as f64;
+    let (squares, cosines) = theta.iter().fold((0.0, 0.0), |(s, c), &t| {
+        let x = f64::from(t) - centre;
+        (s + x * x, c + (std::f64::consts::TAU * x).cos())
+    });
+    let value = -20.0 * (-0.2 * (squares / n).sqrt()).exp() - (cosines / n).exp()
+        + 20.0
+        + std::f64::consts::E;
+    // Rounding leaves ±1e-15 at the minimiser; costs are non-negative.
+    value.max(0.0) as f32
+}

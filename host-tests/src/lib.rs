@@ -5,6 +5,7 @@
 use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;
 
+pub mod arm;
 pub mod auv;
 pub mod auv_task;
 pub mod double_integrator;

@@ -1,9 +1,10 @@
 //! How [`NominalHopping::TUNED`] was found: the paper's "initial policy was found from
 //! optimization in simulation with constant control gains". About 200 episodes of 8 s
-//! (5 s in release, much longer in debug), so it is ignored by default; run it in release:
+//! (5 s in release, much longer in debug), so it is compiled in release builds only (debug
+//! `cargo test` skips it) and CI runs it in release:
 //!
 //! ```text
-//! cargo test --release -p host-tests --test hopper_tuning -- --ignored --nocapture
+//! cargo test --release -p host-tests --test hopper_tuning -- --nocapture
 //! ```
 //!
 //! 1. A coarse grid with T = 0.62 s, knee mean −0.85 rad, kd = 0.6 over kp ∈ {20, 30, 45},
@@ -18,6 +19,8 @@
 //! with a joint in a stop) + 1e-4·∫Σ|τ q̇| dt, plus 10 if the leg collapses and 5 + (4 − n)
 //! if fewer than n = 4 apexes were counted. `TUNED` is the result rounded to two significant
 //! decimals.
+
+#![cfg(not(debug_assertions))]
 
 use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Vector};
 use host_tests::hopper::{Hopper, HopperConfig, NominalHopping};
@@ -77,7 +80,6 @@ fn cost(hopper: &Hopper) -> f64 {
 /// every apex (after three hops) within 1 cm of 0.6 m, without limit violations, and prints
 /// it next to `TUNED`, which must meet the same test.
 #[test]
-#[ignore = "tuning run (about 200 episodes); run in release with --ignored"]
 fn reproduce_the_nominal_hopping_tuning() {
     let config = HopperConfig {
         episode_duration: 8.0,
