@@ -1,6 +1,7 @@
 //! The AUV experiments of Leonetti et al. 2012, section 5, through the library's own
 //! controller stack ([`Adapter`](ctrl_adapt::controller::Adapter) over `CorrectedPd`, the
-//! optimizers unchanged), over 10 seeds. Heavy: run in release,
+//! optimizers unchanged), over 10 seeds. Heavy: compiled in release builds only (debug
+//! `cargo test` skips it),
 //!
 //! ```text
 //! cargo test --release -p host-tests --test auv_experiments -- --nocapture
@@ -10,9 +11,11 @@
 //! "simulator" (0.5 m/s, seed 100 + s) and the optimizers' RNG (seed s). Episodes are 24 s;
 //! the reward is the paper's J (cost −J); "success" is J > −1, i.e. within D = 1 m.
 
+#![cfg(not(debug_assertions))]
+
 use ctrl_adapt::controller::Mode;
 use ctrl_adapt::optimizer::two_phase::Phase;
-use ctrl_adapt::optimizer::{Optimizer, TwoPhase, Vector};
+use ctrl_adapt::optimizer::{TwoPhase, Vector};
 use host_tests::auv::AuvConfig;
 use host_tests::auv_task::{
     self, AuvEpisode, best_so_far, episodes_to_success, global_search, local_config, plant,

@@ -1,6 +1,7 @@
 //! The hopping experiment of Hwangbo et al., section IV, through the library's own
 //! controller stack (`Adapter` over `PeriodicPd`, 31 parameters, `ApexHeightCost`), learning
-//! with the library's `CoordinateSearch` (ROCK* is not available). Heavy: run in release,
+//! with the library's `CoordinateSearch` (ROCK* is not available). Heavy: compiled in release
+//! builds only (debug `cargo test` skips it),
 //!
 //! ```text
 //! cargo test --release -p host-tests --test hopper_experiments -- --nocapture
@@ -9,6 +10,8 @@
 //! Learning: 400 episodes of 12 s, every one on the same training course (the block
 //! sequence of seed 1001, replayed: common random numbers). Evaluation: the initial and the
 //! learned policy on 5 courses never used in learning (seeds 10 001–10 005).
+
+#![cfg(not(debug_assertions))]
 
 use std::sync::OnceLock;
 
