@@ -1,6 +1,8 @@
 //! Host (std) harness for `ctrl-adapt`: objective functions and a driver that runs any
 //! [`Optimizer`] against them, shared by the integration tests, the demo and the benchmarks.
-//! The plants: [`auv`] (survey under a current) and [`hopper`] (hopping leg).
+//! The plants: [`auv`] (survey under a current) and [`hopper`] (hopping leg); the experiment
+//! tasks that drive them through the library's adapter: [`auv_task`] and [`hopper_task`];
+//! the demo's figures: [`plots`].
 
 use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;

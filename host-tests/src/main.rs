@@ -30,7 +30,8 @@ const USAGE: &str = "usage: host-tests [--hopper] [--out DIR] [--seed N]
             the real current; summary table and SVG figures
   --hopper  hopping-leg demo: apex heights per hop before/after learning
   --out DIR where to write the figures (default target/demo)
-  --seed N  seed of the disturbances and of the optimizers (default 1)";
+  --seed N  seed of the disturbances and of the optimizers (default 1); for --hopper, of the
+            unseen evaluation course (learning always uses the training course)";
 
 struct Options {
     hopper: bool,
