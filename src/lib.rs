@@ -10,6 +10,7 @@ pub mod optimizer;
 pub use optimizer::{
     Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector,
 };
+pub use optimizer::{Racos, RacosConfig, Replacement, Sracos, SracosConfig, Suppression};
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
 /// feature is on (checked by the cross-builds with `--features defmt`).
@@ -22,4 +23,10 @@ const _: () = {
     assert_format::<Bounds<3>>();
     assert_format::<CoordinateConfig>();
     assert_format::<CoordinateSearch<3>>();
+    assert_format::<Replacement>();
+    assert_format::<Suppression>();
+    assert_format::<SracosConfig>();
+    assert_format::<RacosConfig>();
+    assert_format::<Sracos<3>>();
+    assert_format::<Racos<3, 1, 3>>();
 };

@@ -39,8 +39,10 @@ use nalgebra::SVector;
 use rand_core::RngCore;
 
 pub mod coordinate;
+pub mod sracos;
 
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
+pub use sracos::{Racos, RacosConfig, Replacement, Sracos, SracosConfig, Suppression};
 
 /// A parameter vector θ ∈ R^N in the on-target number type (`f32`: the Cortex-M4F FPU is
 /// single precision, `f64` would be emulated in software).
