@@ -42,3 +42,15 @@ pub fn rosenbrock<const N: usize>(theta: &Vector<N>) -> f32 {
         })
         .sum::<f64>() as f32
 }
+
+/// Ackley −20·exp(−0.2·√(mean (θ_i − c)²)) − exp(mean cos 2π(θ_i − c)) + e + 20, highly
+/// multimodal, minimum 0 at θ = c·1 (the SRACOS paper's form with c = 0.2).
+pub fn ackley<const N: usize>(theta: &Vector<N>, centre: f64) -> f32 {
+    let n = N as f64;
+    let (squares, cosines) = theta.iter().fold((0.0, 0.0), |(s, c), &t| {
+        let d = f64::from(t) - centre;
+        (s + d * d, c + (2.0 * std::f64::consts::PI * d).cos())
+    });
+    (-20.0 * (-0.2 * (squares / n).sqrt()).exp() - (cosines / n).exp() + std::f64::consts::E + 20.0)
+        as f32
+}
