@@ -116,6 +116,14 @@ pub const fn zoopt_uncertain_bits(n: usize) -> usize {
     }
 }
 
+/// Whether `a == b`, testing the coordinates `first` before the rest. A classifier
+/// candidate differs from its positive only in the uncertain coordinates, and the stored
+/// samples are mostly such near-copies of each other, so a plain scan would run deep into
+/// nearly every vector; testing the uncertain coordinates first usually settles it at once.
+fn same<const N: usize>(a: &Vector<N>, b: &Vector<N>, first: &[usize]) -> bool {
+    first.iter().all(|&i| a.get(i) == b.get(i)) && a.iter().zip(b.iter()).all(|(x, y)| x == y)
+}
+
 /// A uniform integer in `0..n` (`n ≥ 1`) by multiply-shift on one `u32`.
 fn below<R: RngCore + ?Sized>(rng: &mut R, n: usize) -> usize {
     ((u64::from(rng.next_u32()) * n as u64) >> 32) as usize
@@ -327,12 +335,13 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
         &self.negative[..self.len.saturating_sub(K)]
     }
 
-    /// Whether `theta` equals a stored sample (exact f32 equality, as ZOOpt's 1e-17).
-    fn contains(&self, theta: &Vector<N>) -> bool {
+    /// Whether `theta` equals a stored sample (exact f32 equality, as ZOOpt's 1e-17);
+    /// see [`same`] for `first`.
+    fn contains(&self, theta: &Vector<N>, first: &[usize]) -> bool {
         self.positives()
             .iter()
             .chain(self.negatives())
-            .any(|e| e.theta == *theta)
+            .any(|e| same(&e.theta, theta, first))
     }
 
     /// The SRACOS update: sorted insertion into the positive set, then the displaced sample
@@ -413,7 +422,8 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
     }
 
     /// A new candidate: r distinct uniform samples first, then from the classifier with
-    /// probability 1 − `exploration_rate`, else uniform; `is_new` rejects duplicates.
+    /// probability 1 − `exploration_rate`, else uniform; `is_new(x, first)` rejects
+    /// duplicates (`first`: the coordinates to compare first, see [`same`]).
     /// `None` when no new point was found (see the module docs).
     fn propose<R: RngCore + ?Sized>(
         &self,
@@ -421,21 +431,21 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
         exploration_rate: f32,
         uncertain_bits: usize,
         rng: &mut R,
-        is_new: impl Fn(&Vector<N>) -> bool,
+        is_new: impl Fn(&Vector<N>, &[usize]) -> bool,
     ) -> Option<Vector<N>> {
         if self.is_full() && unit_f32(rng) < 1.0 - exploration_rate {
             let positive = self.positive[below(rng, K)].theta;
             let region = Region::learn(bounds, &positive, &self.negative, uncertain_bits, rng);
             for _ in 0..MAX_DRAWS {
                 let x = region.sample(&positive, rng);
-                if is_new(&x) {
+                if is_new(&x, region.dims()) {
                     return Some(x);
                 }
             }
         }
         (0..MAX_DRAWS)
             .map(|_| bounds.sample_uniform(rng))
-            .find(|x| is_new(x))
+            .find(|x| is_new(x, &[]))
     }
 }
 
@@ -625,7 +635,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
                     self.config.exploration_rate,
                     self.uncertain_bits,
                     rng,
-                    |x| !archive.contains(x),
+                    |x, first| !archive.contains(x, first),
                 )
             }
         };
@@ -765,7 +775,9 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
             self.config.exploration_rate,
             self.uncertain_bits,
             rng,
-            |x| !archive.contains(x) && batch.iter().all(|e| e.theta != *x),
+            |x, first| {
+                !archive.contains(x, first) && !batch.iter().any(|e| same(&e.theta, x, first))
+            },
         );
         match theta {
             Some(theta) => Ok(self.ledger.hand_out(theta)),

@@ -152,6 +152,11 @@ impl Region {
         x
     }
 
+    /// The uncertain coordinates.
+    pub(super) fn dims(&self) -> &[usize] {
+        &self.dims[..self.count]
+    }
+
     /// The uncertain coordinates and their faces `(dim, lower, upper)`.
     #[cfg(test)]
     pub(super) fn faces(&self) -> impl Iterator<Item = (usize, f32, f32)> + '_ {
