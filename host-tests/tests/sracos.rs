@@ -8,7 +8,7 @@
 
 use ctrl_adapt::optimizer::sracos::zoopt_set_sizes;
 use ctrl_adapt::optimizer::{
-    Bounds, Optimizer, Racos, RacosConfig, Sracos, SracosConfig, Suppression, Vector, unit_f32,
+    Bounds, Racos, RacosConfig, Sracos, SracosConfig, Suppression, Vector, unit_f32,
 };
 use host_tests::functions::{ackley, sphere};
 use host_tests::{random_search, run};
