@@ -39,7 +39,9 @@
 //!   positive not re-evaluated before is evaluated `resample_times` more times and its value
 //!   becomes `(1 − balance_rate)·value + balance_rate·mean`; the positives are re-sorted and
 //!   the sample that triggered it is inserted last. The re-evaluations count against the
-//!   budget. One lucky episode then cannot hold a positive slot for ever.
+//!   budget. Under zero-mean noise one lucky episode then cannot hold a positive slot for
+//!   ever; against rare one-sided flattering outliers it measured worse than no suppression
+//!   (`docs/sracos.md`).
 //!
 //! # Documented deviations
 //! * **Distinct-candidate fallback.** After 100 duplicate draws from the box ZOOpt starts a
