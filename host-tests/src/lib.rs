@@ -63,3 +63,16 @@ where
         status: optimizer.status(),
     })
 }
+
+/// Uniform random search, the baseline of the classification-based optimizers: the best
+/// cost of `budget` uniform samples of `bounds`.
+pub fn random_search<const N: usize, R: RngCore>(
+    bounds: &ctrl_adapt::optimizer::Bounds<N>,
+    budget: usize,
+    rng: &mut R,
+    mut objective: impl FnMut(&Vector<N>) -> f32,
+) -> f32 {
+    (0..budget)
+        .map(|_| objective(&bounds.sample_uniform(rng)))
+        .fold(f32::INFINITY, f32::min)
+}
