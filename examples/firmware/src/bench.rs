@@ -46,6 +46,9 @@ macro_rules! sections {
 /// One module per measured section.
 pub mod sections {
     sections! {
+        /// Calibration: nothing between the markers, so its count is the markers' own
+        /// overhead, which the script subtracts from every other section.
+        empty = 0;
         /// `CoordinateSearch::<18>::ask`.
         ask = 1;
         /// `CoordinateSearch::<18>::tell`.

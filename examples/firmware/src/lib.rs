@@ -14,7 +14,10 @@
 #![warn(missing_docs)]
 
 use cortex_m as _; // its critical-section implementation (single core), used by the logger
-use defmt_semihosting as _; // the global defmt logger (semihosting stdout)
+// The global defmt logger (semihosting stdout). Left out of the panic-free build: its
+// re-entrancy check is a `panic!` that defmt.x keeps alive in every binary that links it.
+#[cfg(not(feature = "panic-free"))]
+use defmt_semihosting as _;
 
 pub mod bench;
 pub mod functions;
@@ -30,12 +33,17 @@ pub fn exit_failure() -> ! {
     semihosting::process::exit(1)
 }
 
-/// Any panic logs its message and ends QEMU with a failure code (without this, QEMU would
-/// spin forever in the default handler and CI would hang until its timeout).
+/// Any panic logs where it happened and ends QEMU with a failure code (without this, QEMU
+/// would spin forever in the default handler and CI would hang until its timeout). Only the
+/// location is logged: formatting the message would link `core::fmt` (about 10 KB of flash).
+/// A failed `defmt::assert!` logs its own message before it panics.
 #[cfg(not(feature = "panic-free"))]
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    defmt::error!("panic: {}", defmt::Display2Format(info));
+    match info.location() {
+        Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
+        None => defmt::error!("panic"),
+    }
     exit_failure()
 }
 
@@ -55,19 +63,25 @@ fn panic(_: &core::panic::PanicInfo) -> ! {
 }
 
 // defmt's own `panic!`/`unwrap!` go through core's panic, hence through the handler above.
+#[cfg(not(feature = "panic-free"))]
 #[defmt::panic_handler]
 fn defmt_panic() -> ! {
     core::panic!()
 }
 
 /// A fault (bad memory access, undefined instruction, a `bkpt` without a debugger) logs the
-/// faulting PC and ends QEMU with a failure code instead of hanging.
+/// faulting PC and ends QEMU with a failure code instead of hanging. The panic-free build
+/// does not log here: defmt-semihosting's logger panics if it is re-entered (a fault while
+/// logging), which would put a panic path into every binary.
 #[cortex_m_rt::exception]
 unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    #[cfg(not(feature = "panic-free"))]
     defmt::error!(
         "HardFault at pc={=u32:#010x} lr={=u32:#010x}",
         frame.pc(),
         frame.lr()
     );
+    #[cfg(feature = "panic-free")]
+    let _ = frame;
     exit_failure()
 }

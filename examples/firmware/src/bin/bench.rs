@@ -21,6 +21,9 @@ fn main() -> ! {
         "footprint: size_of CoordinateSearch<18> = {=usize}",
         core::mem::size_of::<CoordinateSearch<N>>()
     );
+    for _ in 0..8 {
+        sections::empty::measure(|| ());
+    }
     match measure_coordinate_search() {
         Ok(()) => {}
         Err(e) => {
@@ -43,12 +46,13 @@ fn measure_coordinate_search() -> Result<(), ctrl_adapt::Error> {
     };
     let mut search = CoordinateSearch::try_new(bounds, Vector::<N>::repeat(-1.0), config)?;
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+    let ellipsoid = functions::Ellipsoid::<N>::new();
     for _ in 0..MEASURED {
         if search.status() != Status::Running {
             break;
         }
         let theta = sections::ask::measure(|| search.ask(&mut rng))?;
-        let cost = functions::ellipsoid(&theta);
+        let cost = ellipsoid.eval(&theta);
         sections::tell::measure(|| search.tell(cost))?;
     }
     defmt::info!(

@@ -39,6 +39,7 @@ fn run() -> Result<(), ctrl_adapt::Error> {
     let mut search = CoordinateSearch::try_new(bounds, Vector::<N>::repeat(-1.0), config)?;
     // The coordinate search draws no random numbers; the RNG belongs to the common interface.
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+    let ellipsoid = functions::Ellipsoid::<N>::new();
     defmt::info!(
         "footprint: size_of CoordinateSearch<18> = {=usize}",
         core::mem::size_of::<CoordinateSearch<N>>()
@@ -48,7 +49,7 @@ fn run() -> Result<(), ctrl_adapt::Error> {
     let mut next_report = 1;
     while search.status() == Status::Running {
         let theta = search.ask(&mut rng)?;
-        search.tell(functions::ellipsoid(&theta))?;
+        search.tell(ellipsoid.eval(&theta))?;
         let k = search.evaluations();
         if k == next_report {
             let best = search.best().map_or(f32::INFINITY, |b| b.cost);
