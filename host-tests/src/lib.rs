@@ -6,6 +6,7 @@ use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;
 
 pub mod functions;
+pub mod pil;
 
 /// What one optimisation run produced.
 #[derive(Debug, Clone, PartialEq)]

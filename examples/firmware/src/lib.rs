@@ -20,8 +20,10 @@ use cortex_m as _; // its critical-section implementation (single core), used by
 use defmt_semihosting as _;
 
 pub mod bench;
+pub mod clock;
 pub mod functions;
 pub mod stack;
+pub mod uart;
 
 /// Ends the emulation with exit code 0 (semihosting `SYS_EXIT`).
 pub fn exit_success() -> ! {

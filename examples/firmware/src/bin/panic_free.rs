@@ -1,6 +1,9 @@
 //! Panic-freedom probe. Exercises the whole public API of `CoordinateSearch<18>` and `Bounds`
 //! on inputs the optimiser cannot see through (`black_box`, an RNG, NaN and infinite costs),
-//! so that every panic path inside them stays in the binary if it exists.
+//! and the PIL firmware's code path (frame decoding of arbitrary bytes, frame encoding,
+//! reading and writing over an embedded-io port, the session and the stand-in controller
+//! with its `CoordinateSearch<3>`), so that every panic path inside them stays in the binary
+//! if it exists.
 //!
 //! Built with `--release --features panic-free` (see `scripts/panic-check`), the panic
 //! handler references an undefined symbol: this binary links only if no panic is reachable
@@ -13,6 +16,8 @@ use core::hint::black_box;
 use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{Bounds, CoordinateConfig, CoordinateSearch, Optimizer, Status, Vector};
 use ctrl_adapt_firmware::{exit_failure, exit_success};
+use pil_link::standin::{PdCorrection, SEED, StandinConfig};
+use pil_link::{Frame, FrameReader, Kind, LinkError, MAX_WIRE, Session, read_frame, write_frame};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -67,9 +72,70 @@ fn main() -> ! {
             black_box(search.bounds());
         }
     }
+    if !pil_session(&mut rng) {
+        exit_failure()
+    }
     if black_box(told) > 0 {
         exit_success()
     } else {
         exit_failure()
     }
+}
+
+/// The PIL firmware's path: random episodes of valid frames interleaved with arbitrary
+/// bytes, through the reader, the session, the stand-in controller and a byte-slice port.
+fn pil_session(rng: &mut Xoshiro128PlusPlus) -> bool {
+    let Ok(controller) = PdCorrection::try_new(StandinConfig::DEFAULT, SEED) else {
+        return false;
+    };
+    let mut session = Session::new(controller);
+    let mut reader = FrameReader::new();
+    let mut answers = 0u32;
+    for step in 0..2_000u32 {
+        let episode = (step / 100) as u16;
+        let kind = match rng.next_u32() % 16 {
+            0 => Kind::Start,
+            1 => Kind::End,
+            2 => Kind::Shutdown,
+            _ => Kind::State,
+        };
+        let values = [
+            f32::from_bits(rng.next_u32()),
+            unit_f32(rng) - 0.5,
+            unit_f32(rng),
+        ];
+        let count = (rng.next_u32() % 4) as usize;
+        let frame = Frame::new(kind, episode, (step % 100) as u16).with_values(&values[..count]);
+        // Encode into a port, then read it back, maybe with arbitrary bytes in between.
+        let mut wire = [0u8; 2 * MAX_WIRE];
+        let mut port: &mut [u8] = &mut wire;
+        if write_frame(&mut port, &frame).is_err() {
+            return false;
+        }
+        if rng.next_u32().is_multiple_of(4) {
+            for byte in wire.iter_mut().take(MAX_WIRE) {
+                *byte = rng.next_u32() as u8;
+            }
+        }
+        let mut input: &[u8] = &wire;
+        let reply = match read_frame(&mut input, &mut reader, || true) {
+            Ok(f) => session.on_frame(&f),
+            Err(LinkError::Timeout) => session.on_timeout(),
+            Err(LinkError::Corrupt(_)) => {
+                session.on_corrupt();
+                None
+            }
+            Err(LinkError::Io(e)) => match e {},
+        };
+        if let Some(reply) = reply {
+            answers += 1;
+            let mut out = [0u8; MAX_WIRE];
+            let mut out_port: &mut [u8] = &mut out;
+            let _ = write_frame(&mut out_port, &reply);
+            black_box(&out);
+        }
+        black_box((session.awaiting_tick(), session.finished(), session.stats()));
+    }
+    black_box(session.controller().best());
+    answers > 0
 }
