@@ -220,7 +220,7 @@ pub struct Qemu {
 impl Qemu {
     /// Starts `elf` and waits (up to 30 s) for QEMU to connect UART0. The firmware's defmt
     /// log (semihosting stdout) goes through `defmt-print -e elf` into `log` if defmt-print
-    /// is installed, raw otherwise.
+    /// is installed, raw (undecoded) otherwise.
     pub fn start(elf: &Path, log: &Path) -> io::Result<(Self, SocketLink)> {
         let dir = std::env::temp_dir().join(format!("ctrl-adapt-pil-{}", std::process::id()));
         std::fs::create_dir_all(&dir)?;
@@ -229,6 +229,15 @@ impl Qemu {
         let listener = UnixListener::bind(&socket)?;
         listener.set_nonblocking(true)?;
         let log_file = std::fs::File::create(log)?;
+        // The firmware's log (semihosting stdout) is decoded by defmt-print into `log`, or
+        // written there raw when defmt-print is not installed (QEMU's stdout must never be a
+        // closed pipe: the firmware would see its log writes fail).
+        let decode = Command::new("defmt-print")
+            .arg("--version")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
         let mut child = Command::new("qemu-system-arm")
             .args(["-cpu", "cortex-m4", "-machine", "mps2-an386"])
             .args(["-display", "none", "-monitor", "none"])
@@ -238,19 +247,25 @@ impl Qemu {
             .arg("-kernel")
             .arg(elf)
             .stdin(Stdio::null())
-            .stdout(Stdio::piped())
+            .stdout(if decode {
+                Stdio::piped()
+            } else {
+                Stdio::from(log_file.try_clone()?)
+            })
             .spawn()
             .map_err(|e| io::Error::new(e.kind(), format!("qemu-system-arm: {e}")))?;
-        let stdout = child.stdout.take().expect("stdout is piped");
-        // Without the decoder the firmware's log is lost, nothing else.
-        let decoder = Command::new("defmt-print")
-            .arg("-e")
-            .arg(elf)
-            .stdin(Stdio::from(stdout))
-            .stdout(log_file.try_clone()?)
-            .stderr(log_file)
-            .spawn()
-            .ok();
+        let decoder = match child.stdout.take() {
+            Some(stdout) => Some(
+                Command::new("defmt-print")
+                    .arg("-e")
+                    .arg(elf)
+                    .stdin(Stdio::from(stdout))
+                    .stdout(log_file.try_clone()?)
+                    .stderr(log_file)
+                    .spawn()?,
+            ),
+            None => None,
+        };
         let mut qemu = Self {
             child,
             decoder,

@@ -47,3 +47,16 @@ pub mod standin;
 pub use frame::{Frame, FrameError, FrameReader, Kind, MAX_VALUES, MAX_WIRE, Values};
 pub use link::{LinkError, read_frame, write_frame};
 pub use session::{Controller, Session, Stats};
+
+/// Compile-time proof that the public types implement `defmt::Format` with the `defmt`
+/// feature (the firmware builds with it).
+#[cfg(feature = "defmt")]
+const _: () = {
+    const fn assert_format<T: defmt::Format>() {}
+    assert_format::<Frame>();
+    assert_format::<FrameError>();
+    assert_format::<Kind>();
+    assert_format::<LinkError<FrameError>>();
+    assert_format::<Stats>();
+    assert_format::<standin::StandinConfig>();
+};
