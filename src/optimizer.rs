@@ -193,7 +193,9 @@ impl<const N: usize> Bounds<N> {
             if v.is_nan() {
                 self.lower[i]
             } else {
-                v.clamp(self.lower[i], self.upper[i])
+                // Not `f32::clamp`: its `min <= max` assertion is a panic path the
+                // compiler cannot remove (`lower < upper` is an invariant of `try_new`).
+                v.max(self.lower[i]).min(self.upper[i])
             }
         })
     }

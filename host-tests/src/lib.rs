@@ -10,6 +10,7 @@ pub mod auv;
 pub mod double_integrator;
 pub mod functions;
 pub mod hopper;
+pub mod pil;
 
 /// What one optimisation run produced.
 #[derive(Debug, Clone, PartialEq)]
