@@ -11,7 +11,8 @@ pub mod reward;
 
 pub use optimizer::{
     Best, Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
-    DiagonalCem, Error, Optimizer, Status, TwoPhase, Vector, Weighting,
+    DiagonalCem, Error, Optimizer, Racos, RacosConfig, Replacement, Sracos, SracosConfig, Status,
+    Suppression, TwoPhase, Vector, Weighting,
 };
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
@@ -49,4 +50,10 @@ const _: () = {
     assert_format::<Weighting>();
     assert_format::<CemConfig>();
     assert_format::<DiagonalCem<3, 4, 2>>();
+    assert_format::<Replacement>();
+    assert_format::<Suppression>();
+    assert_format::<SracosConfig>();
+    assert_format::<RacosConfig>();
+    assert_format::<Sracos<3>>();
+    assert_format::<Racos<3, 1, 3>>();
 };

@@ -41,11 +41,13 @@ use rand_core::RngCore;
 pub mod cem;
 pub mod coordinate;
 pub mod crs;
+pub mod sracos;
 pub mod two_phase;
 
 pub use cem::{CemConfig, DiagonalCem, Weighting};
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
 pub use crs::{ControlledRandomSearch, CrsConfig};
+pub use sracos::{Racos, RacosConfig, Replacement, Sracos, SracosConfig, Suppression};
 pub use two_phase::TwoPhase;
 
 /// A parameter vector θ ∈ R^N in the on-target number type (`f32`: the Cortex-M4F FPU is
@@ -191,7 +193,9 @@ impl<const N: usize> Bounds<N> {
             if v.is_nan() {
                 self.lower[i]
             } else {
-                v.clamp(self.lower[i], self.upper[i])
+                // Not `f32::clamp`: its `min <= max` assertion is a panic path the
+                // compiler cannot remove (`lower < upper` is an invariant of `try_new`).
+                v.max(self.lower[i]).min(self.upper[i])
             }
         })
     }

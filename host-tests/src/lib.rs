@@ -14,6 +14,7 @@ pub mod double_integrator;
 pub mod functions;
 pub mod hopper;
 pub mod hopper_task;
+pub mod pil;
 pub mod plots;
 
 /// What one optimisation run produced.
@@ -67,4 +68,17 @@ where
         best_theta,
         status: optimizer.status(),
     })
+}
+
+/// Uniform random search, the baseline of the classification-based optimizers: the best
+/// cost of `budget` uniform samples of `bounds`.
+pub fn random_search<const N: usize, R: RngCore>(
+    bounds: &ctrl_adapt::optimizer::Bounds<N>,
+    budget: usize,
+    rng: &mut R,
+    mut objective: impl FnMut(&Vector<N>) -> f32,
+) -> f32 {
+    (0..budget)
+        .map(|_| objective(&bounds.sample_uniform(rng)))
+        .fold(f32::INFINITY, f32::min)
 }

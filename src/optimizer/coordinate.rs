@@ -233,11 +233,15 @@ impl<const N: usize> CoordinateSearch<N> {
 
     /// The tentative step α̃_j of direction `j` (0-based over the 2N directions).
     fn tentative(&self, j: usize) -> f32 {
-        if j < N {
-            self.steps_up[j]
+        // `j < 2N` always (`direction` wraps at 2N), but the compiler cannot see that, so
+        // plain indexing would keep a panic path in the firmware (`scripts/panic-check`);
+        // the unreachable fallback is the smallest step.
+        let steps = if j < N {
+            &self.steps_up
         } else {
-            self.steps_down[j - N]
-        }
+            &self.steps_down
+        };
+        steps.get(j % N).copied().unwrap_or(self.config.tolerance)
     }
 
     /// α̃_j ← σα̃_j, floored at ε (see "Step floor" in the module docs).
@@ -254,10 +258,14 @@ impl<const N: usize> CoordinateSearch<N> {
     }
 
     fn set_tentative(&mut self, j: usize, step: f32) {
-        if j < N {
-            self.steps_up[j] = step;
+        // `.get_mut` for the reason given in `tentative`.
+        let steps = if j < N {
+            &mut self.steps_up
         } else {
-            self.steps_down[j - N] = step;
+            &mut self.steps_down
+        };
+        if let Some(s) = steps.get_mut(j % N) {
+            *s = step;
         }
     }
 
@@ -271,7 +279,11 @@ impl<const N: usize> CoordinateSearch<N> {
         } else {
             from[i] - step
         };
-        p[i] = moved.clamp(self.bounds.lower()[i], self.bounds.upper()[i]);
+        // max/min rather than `f32::clamp`, whose `min <= max` assertion (true for valid
+        // bounds, but not provable by the compiler) is a panic path.
+        p[i] = moved
+            .max(self.bounds.lower()[i])
+            .min(self.bounds.upper()[i]);
         let differs = p[i] != from[i];
         (p, differs)
     }

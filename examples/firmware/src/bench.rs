@@ -1,0 +1,61 @@
+//! Markers for deterministic instruction counts (see `scripts/footprint`).
+//!
+//! QEMU does not implement the DWT cycle counter, so the footprint script runs the `bench`
+//! firmware with one instruction per translation block and an execution log
+//! (`-d exec,nochain` with `-singlestep` / `one-insn-per-tb`): every executed instruction
+//! is one `Trace` line. Each measured section is wrapped in a pair of never-inlined marker
+//! functions, `bench::sections::<name>::start` and `..::end`; the script finds their
+//! addresses with `nm` and counts the trace lines between a return from `start` and the
+//! call of `end`. The count is exact for this binary (no interrupts are enabled) and
+//! independent of the host's speed.
+//!
+//! Add a section with one line in the `sections!` invocation below and wrap the code to
+//! measure in `sections::<name>::measure(|| ..)`; the script picks it up by name.
+
+/// Defines one module per measured section, each with `start`/`end` markers and `measure`.
+/// Each marker body passes a distinct constant through `black_box`, so LLVM's function
+/// merging can never fold two markers into one address.
+macro_rules! sections {
+    ($($(#[$doc:meta])* $name:ident = $id:literal;)*) => {
+        $(
+            $(#[$doc])*
+            pub mod $name {
+                /// Marks the start of one measured run of the section.
+                #[inline(never)]
+                pub fn start() {
+                    core::hint::black_box(2 * $id as u32);
+                }
+                /// Marks the end of one measured run of the section.
+                #[inline(never)]
+                pub fn end() {
+                    core::hint::black_box(2 * $id as u32 + 1);
+                }
+                /// Runs `f` between the two markers.
+                #[inline(always)]
+                pub fn measure<R>(f: impl FnOnce() -> R) -> R {
+                    start();
+                    let r = core::hint::black_box(f());
+                    end();
+                    r
+                }
+            }
+        )*
+    };
+}
+
+/// One module per measured section.
+pub mod sections {
+    sections! {
+        /// Calibration: nothing between the markers, so its count is the markers' own
+        /// overhead, which the script subtracts from every other section.
+        empty = 0;
+        /// `CoordinateSearch::<18>::ask`.
+        ask = 1;
+        /// `CoordinateSearch::<18>::tell`.
+        tell = 2;
+        /// Slot for the controller layer (issue 5): one per-tick policy correction
+        /// `u = u_pd + W·φ(x)` of the 18-parameter AUV policy. Measured by
+        /// `measure_controller` in `src/bin/bench.rs` once the policy exists.
+        correction = 3;
+    }
+}
