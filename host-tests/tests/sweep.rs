@@ -22,8 +22,8 @@
 #![cfg(not(debug_assertions))]
 
 use ctrl_adapt::optimizer::{
-    CemConfig, ControlledRandomSearch, CrsConfig, DiagonalCem, Optimizer, TwoPhase, Vector,
-    Weighting,
+    CemConfig, ControlledRandomSearch, CrsConfig, DiagonalCem, Optimizer, Sracos, SracosConfig,
+    TwoPhase, Vector, Weighting,
 };
 use host_tests::auv::AuvConfig;
 use host_tests::{auv_task, hopper_task};
@@ -223,6 +223,10 @@ fn sweep_table() -> Vec<Row> {
         max_evaluations: budget,
         ..CrsConfig::DEFAULT
     };
+    let sracos = |budget| SracosConfig {
+        max_evaluations: budget,
+        ..SracosConfig::DEFAULT
+    };
     vec![
         auv_entry("coordinate search (step 0.25)", |_| {
             auv_task::coordinate_search(Vector::zeros(), AUV_BUDGET).unwrap()
@@ -233,6 +237,17 @@ fn sweep_table() -> Vec<Row> {
         auv_entry("two-phase: CRS 150, then coordinate search", |_| {
             TwoPhase::try_new(
                 auv_task::global_search(150).unwrap(),
+                150,
+                auv_task::local_config(AUV_BUDGET - 150),
+            )
+            .unwrap()
+        }),
+        auv_entry("SRACOS (K = 2, M = 10, ZOOpt defaults)", |_| {
+            Sracos::<18>::try_new(auv_bounds, sracos(AUV_BUDGET)).unwrap()
+        }),
+        auv_entry("two-phase: SRACOS 150, then coordinate search", |_| {
+            TwoPhase::try_new(
+                Sracos::<18>::try_new(auv_bounds, sracos(150)).unwrap(),
                 150,
                 auv_task::local_config(AUV_BUDGET - 150),
             )
@@ -265,6 +280,9 @@ fn sweep_table() -> Vec<Row> {
                 },
             )
             .unwrap()
+        }),
+        hopper_entry("SRACOS (K = 2, M = 10, ZOOpt defaults)", |_| {
+            Sracos::<31>::try_new(hop_bounds, sracos(HOPPER_BUDGET)).unwrap()
         }),
         hopper_entry(
             "DiagonalCem (CMA-ES weights, K = 10, σ₀ = half-range / 6)",
