@@ -110,6 +110,7 @@ fn every_weighting_learns_the_via_point_task() {
 /// * exploration: with adaptation the final λ (mean variance) of all 15 sessions lie within
 ///   a factor 3 of each other, λ grew from 10² and shrank from 10⁶ (the paper's (F)–(I):
 ///   every λ_init converges to the same magnitude; these seeds: 605 to 848).
+///
 /// Heavy (about a minute in debug): compiled in release only; CI runs
 /// `cargo test --release -p host-tests --test via_point`.
 #[test]
