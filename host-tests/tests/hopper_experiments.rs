@@ -126,4 +126,3 @@ fn learning_reduces_the_apex_spread_and_keeps_hopping() {
     }
     assert!(ma <= 0.4 * mb, "median spread {ma} vs initial {mb}");
 }
-
