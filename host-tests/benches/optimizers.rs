@@ -11,8 +11,8 @@ use std::time::Instant;
 
 use ctrl_adapt::controller::{Adapter, CorrectedPd, PeriodicPd, StateFeatures};
 use ctrl_adapt::optimizer::{
-    Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Optimizer,
-    Vector,
+    Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
+    DiagonalCem, Optimizer, Sracos, SracosConfig, Vector,
 };
 use ctrl_adapt::reward::SurveyReward;
 use host_tests::{functions::sphere, run};
@@ -39,6 +39,24 @@ fn crs<const N: usize, const M: usize>() -> ControlledRandomSearch<N, M> {
         ..CrsConfig::DEFAULT
     };
     ControlledRandomSearch::try_new(bounds, config).expect("valid config")
+}
+
+fn sracos<const N: usize>() -> Sracos<N> {
+    let bounds = Bounds::<N>::uniform(-1.0, 1.0).expect("valid box");
+    let config = SracosConfig {
+        max_evaluations: 20 * N as u32,
+        ..SracosConfig::DEFAULT
+    };
+    Sracos::try_new(bounds, config).expect("valid config")
+}
+
+fn cem<const N: usize, const K: usize>() -> DiagonalCem<N, K> {
+    let bounds = Bounds::<N>::uniform(-1.0, 1.0).expect("valid box");
+    let config = CemConfig {
+        max_evaluations: 20 * N as u32,
+        ..CemConfig::DEFAULT
+    };
+    DiagonalCem::try_new(bounds, Vector::zeros(), config).expect("valid config")
 }
 
 /// Times ask+tell of the optimizers `make` builds, replaying the costs of one recorded run
@@ -94,6 +112,8 @@ fn main() {
     bench("CoordinateSearch", coordinate::<100>);
     bench("ControlledRandomSearch (m = 10(n+1))", crs::<18, 190>);
     bench("ControlledRandomSearch (m = 2(n+1))", crs::<18, 38>);
+    bench("Sracos (K = 2, M = 10)", sracos::<18>);
+    bench("DiagonalCem (K = 10, PI-BB)", cem::<18, 10>);
     println!();
     println!("| state | size_of (B) |");
     println!("|---|---:|");
