@@ -115,7 +115,9 @@ impl<const K: usize> PeriodicRbf<K> {
         if t.is_nan() {
             self.period
         } else {
-            t.clamp(self.min_period, self.max_period)
+            // max/min rather than `f32::clamp`, whose assertion is a panic path (see
+            // `Pd::saturate`); the same for min_period ≤ max_period, which `try_new` checks.
+            t.max(self.min_period).min(self.max_period)
         }
     }
 
@@ -198,10 +200,12 @@ impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
         let rows = theta.as_slice().chunks_exact(F);
         for ((out, row), limit) in c.iter_mut().zip(rows).zip(self.envelope.iter()) {
             let sum: f32 = row.iter().zip(phi.iter()).map(|(w, p)| w * p).sum();
+            // max/min rather than `f32::clamp` (a panic path, see `Pd::saturate`); the same
+            // for the envelope's limits, which are > 0.
             *out = if sum.is_nan() {
                 0.0
             } else {
-                sum.clamp(-limit, *limit)
+                sum.max(-limit).min(*limit)
             };
         }
         c
