@@ -17,6 +17,7 @@
 //! [`Pd::update`] differentiates by finite differences, on the error or on the measurement
 //! as [`Derivative`] says.
 
+use super::clamp;
 use crate::optimizer::{Error, Vector};
 
 /// Which signal [`Pd::update`] differentiates.
@@ -111,15 +112,8 @@ impl<const A: usize> Pd<A> {
 
     /// `u` clamped to the output limits (NaN stays NaN, for the caller to detect).
     pub fn saturate(&self, u: &Vector<A>) -> Vector<A> {
-        // Not `f32::clamp`: its `min <= max` assertion is a panic path (the limits are > 0,
-        // but the compiler cannot know) and its message links float formatting (~10 KB of
-        // flash). max/min equal clamp for a limit > 0; NaN is passed through explicitly.
-        u.zip_map(
-            &self.limit,
-            |v, l| {
-                if v.is_nan() { v } else { v.max(-l).min(l) }
-            },
-        )
+        // `f32::clamp` without its panic path (see `controller::clamp`).
+        u.zip_map(&self.limit, |v, l| clamp(v, -l, l))
     }
 
     /// u = sat(k_p ∘ e + k_d ∘ ė). Stateless.
@@ -185,8 +179,8 @@ mod tests {
         assert!(pd.with_limit(Vector::from([f32::INFINITY, 1.0])).is_ok());
     }
 
-    /// Checks: `saturate` (max/min, no `f32::clamp`) equals `f32::clamp` for every non-NaN
-    /// value, infinite limits included, and passes NaN through.
+    /// Checks: `saturate` (no `f32::clamp`, see `controller::clamp`) equals `f32::clamp` bit
+    /// for bit, signed zeros and infinite limits included, and passes NaN through.
     #[test]
     fn saturate_matches_clamp_and_keeps_nan() {
         let pd = Pd::<3>::try_new(Vector::repeat(1.0), Vector::repeat(1.0))

@@ -1,25 +1,18 @@
-//! Footprint benchmark: every measured call sits between exec-trace markers
+//! Footprint benchmark of the optimizers: every measured call sits between exec-trace markers
 //! ([`ctrl_adapt_firmware::bench`]); `scripts/footprint` runs this firmware under QEMU with an
-//! instruction trace and counts the instructions of each call. Measured, all at N = 18 with
-//! the AUV configuration of [`pil_link::auv`]:
+//! instruction trace and counts the instructions of each call. Measured: one `ask` and one
+//! `tell` of each optimizer over the AUV box of [`pil_link::auv`] (N = 18), 400 evaluations
+//! each, on the 18-D ill-conditioned ellipsoid (its minimiser is inside the box): the
+//! coordinate search, SRACOS, the diagonal CEM and the controlled random search (100 points).
+//! The control tick is measured by the `tick` firmware.
 //!
-//! * one control tick: `Adapter::control` of the AUV adapter (PD, the 18-weight correction,
-//!   the envelope checks and the survey reward's bookkeeping), and the policy correction
-//!   alone (`LinearPolicy::correction`: W·φ and the clamp), on 240 states spread over the
-//!   AUV's range;
-//! * one `ask` and one `tell` of each optimizer over the AUV box, 400 evaluations each, on
-//!   the 18-D ill-conditioned ellipsoid (its minimiser is inside the box): the coordinate
-//!   search, SRACOS, the diagonal CEM and the controlled random search (100 points).
-//!
-//! It also prints the `size_of` of each optimizer and of the adapter around it.
+//! It also prints the `size_of` of each optimizer and of the AUV adapter around it.
 #![no_std]
 #![no_main]
 
 use core::mem::size_of;
 
-use ctrl_adapt::controller::{Adapter, Mode};
-use ctrl_adapt::optimizer::unit_f32;
-use ctrl_adapt::{CoordinateSearch, Error, Optimizer, Sracos, Status, Vector};
+use ctrl_adapt::{CoordinateSearch, Error, Optimizer, Sracos, Status};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, functions, stack};
 use pil_link::auv::{self, AuvAdapter, AuvCem, AuvCrs};
@@ -32,8 +25,6 @@ const N: usize = auv::P;
 /// SRACOS's 12 initial samples and the model updates; 40 CEM updates; CRS's 100 initial
 /// points and 300 trial points).
 const MEASURED: u32 = 400;
-/// Measured control ticks: one AUV episode.
-const TICKS: u32 = auv::TICKS as u32;
 
 /// Logs `footprint: size_of NAME = N`.
 macro_rules! log_size {
@@ -89,8 +80,7 @@ fn main() -> ! {
     for _ in 0..8 {
         sections::empty::measure(|| ());
     }
-    let measured = measure_controller()
-        .and_then(|()| coordinate_search())
+    let measured = coordinate_search()
         .and_then(|()| sracos())
         .and_then(|()| cem())
         .and_then(|()| crs());
@@ -127,49 +117,4 @@ fn cem() -> Result<(), Error> {
 #[inline(never)]
 fn crs() -> Result<(), Error> {
     measure_optimizer!(auv::crs(u32::MAX), crs_ask, crs_tell)
-}
-
-/// One AUV episode of control ticks through the adapter, then the policy correction alone
-/// on the same states. θ is a uniform draw from the box (deployed, so every tick runs the
-/// corrected law); the states are uniform over errors of ±6 m and velocities of ±0.6 m/s,
-/// so the PD and the correction saturate on some axes of some ticks and not on others.
-#[inline(never)]
-fn measure_controller() -> Result<(), Error> {
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(2);
-    let bounds = auv::bounds()?;
-    let theta = bounds.sample_uniform(&mut rng);
-    let mut adapter: AuvAdapter<CoordinateSearch<N>> = Adapter::try_new(
-        auv::coordinate_search(u32::MAX)?,
-        auv::controller()?,
-        ctrl_adapt::reward::SurveyReward::try_new(auv::RADIUS)?,
-        auv::adapter_config(u32::MAX),
-        theta,
-    )?;
-    adapter.set_mode(Mode::Deploy)?;
-    adapter.begin_episode(&mut rng)?;
-    let state = |rng: &mut Xoshiro128PlusPlus| {
-        Vector::<{ auv::S }>::from_fn(|i, _| {
-            let range = if i < 3 { 6.0 } else { 0.6 };
-            range * (2.0 * unit_f32(rng) - 1.0)
-        })
-    };
-    let mut states = Xoshiro128PlusPlus::seed_from_u64(3);
-    for _ in 0..TICKS {
-        let x = state(&mut states);
-        let error = Vector::<3>::new(x[0], x[1], x[2]);
-        sections::control::measure(|| adapter.control(&x, &error));
-    }
-    let report = adapter.end_episode()?;
-    defmt::info!(
-        "footprint: measured control ticks = {=u32} (cost {=f32})",
-        report.ticks,
-        report.cost
-    );
-    let policy = *adapter.controller().policy();
-    let mut states = Xoshiro128PlusPlus::seed_from_u64(3);
-    for _ in 0..TICKS {
-        let x = state(&mut states);
-        sections::correction::measure(|| policy.correction(&theta, &x, 0.0));
-    }
-    Ok(())
 }

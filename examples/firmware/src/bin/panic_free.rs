@@ -140,7 +140,7 @@ fn other_optimizers(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
         Replacement::Random,
         Replacement::LargestMargin,
     ] {
-        let suppression = (rng.next_u32() % 2 == 0).then_some(Suppression {
+        let suppression = rng.next_u32().is_multiple_of(2).then_some(Suppression {
             non_update_allowed: black_box(5),
             resample_times: black_box(2),
             balance_rate: black_box(0.5),
@@ -178,7 +178,7 @@ fn other_optimizers(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
             weighting,
             elite: black_box(Some(3)),
             initial_variance: black_box(0.1),
-            adapt_covariance: black_box(rng.next_u32() % 4 != 0),
+            adapt_covariance: black_box(!rng.next_u32().is_multiple_of(4)),
             learning_rate: black_box(0.7),
             exploration_floor: black_box(1e-6),
             min_variance: black_box(0.0),
