@@ -100,9 +100,17 @@ fn loopback_auv_run_matches_the_reference_and_learns() {
         let report = Report::read(&r.report).unwrap();
         assert_eq!(report.mode, Some(mode(r.episode)));
         assert_eq!(report.faulty_ticks, 0);
-        // f32 controller and reward vs the host's f64 survey measure: the same minimum
-        // distance to within f32 rounding (no episode gets within D here).
-        assert!((f64::from(report.cost) - r.host_cost).abs() < 1e-5 * r.host_cost);
+        // The firmware's f32 survey cost against the host's f64 measure of the same
+        // episode: equal to within f32 rounding when every state frame arrived; otherwise
+        // the firmware observed only a subset of the ticks, so its minimum distance is no
+        // smaller and its time within D no longer: its cost is no lower.
+        let (fw, host) = (f64::from(report.cost), r.host_cost);
+        let tolerance = 1e-4 * host.abs().max(1.0);
+        if r.fallback_ticks.is_empty() {
+            assert!((fw - host).abs() <= tolerance, "episode {}", r.episode);
+        } else {
+            assert!(fw >= host - tolerance, "episode {}", r.episode);
+        }
     }
     assert!(records.iter().map(|r| r.injected.len()).sum::<usize>() > 50);
     let mut replay_plant = plant();
