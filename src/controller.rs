@@ -21,8 +21,9 @@ pub use policy::{CorrectedPd, FeatureMap, LinearPolicy, PeriodicPd, PeriodicRbf,
 
 use crate::optimizer::Vector;
 
-/// `value` limited to the interval from `lower` to `upper`: `f32::clamp` without its `lower <= upper`
-/// assertion, the same for every input (NaN stays NaN) when `lower <= upper`.
+/// `value` limited to the interval from `lower` to `upper`: `f32::clamp` without its
+/// `lower <= upper` assertion, the same for every input (NaN stays NaN) when
+/// `lower <= upper`.
 ///
 /// The assertion is a panic path the compiler cannot remove (it cannot know that the limits
 /// were validated) and its message links float formatting (~10 KB of flash); `max`/`min`
