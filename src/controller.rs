@@ -21,6 +21,25 @@ pub use policy::{CorrectedPd, FeatureMap, LinearPolicy, PeriodicPd, PeriodicRbf,
 
 use crate::optimizer::Vector;
 
+/// `value` limited to the interval from `lower` to `upper`: `f32::clamp` without its
+/// `lower <= upper` assertion, the same for every input (NaN stays NaN) when
+/// `lower <= upper`.
+///
+/// The assertion is a panic path the compiler cannot remove (it cannot know that the limits
+/// were validated) and its message links float formatting (~10 KB of flash); `max`/`min`
+/// instead would call `fmaxf`/`fminf` on a Cortex-M4F (about 35 instructions each, no
+/// single-instruction min/max before Armv8), where these two compares are 4–6 instructions.
+#[inline]
+pub(crate) fn clamp(value: f32, lower: f32, upper: f32) -> f32 {
+    if value < lower {
+        lower
+    } else if value > upper {
+        upper
+    } else {
+        value
+    }
+}
+
 /// A controller with a nominal behaviour and a correction parameterised by θ ∈ R^P, over a
 /// state in R^S (time since the episode began given separately) and an action in R^A.
 pub trait Controller<const P: usize, const S: usize, const A: usize> {

@@ -230,7 +230,9 @@ pub fn unit_f32<R: RngCore + ?Sized>(rng: &mut R) -> f32 {
 /// A uniform index in `0..len` (`len` ≥ 1) by Lemire's multiply-shift: no division, and a
 /// bias below len/2³² (negligible for the set sizes here). Returns 0 for `len` = 0.
 pub(crate) fn random_index<R: RngCore + ?Sized>(rng: &mut R, len: usize) -> usize {
-    ((u64::from(rng.next_u32()) * len as u64) >> 32) as usize
+    // (x·len) >> 32 < len already; the `min` only tells the compiler, so that indexing with
+    // the result needs no bounds check (and has no panic path).
+    (((u64::from(rng.next_u32()) * len as u64) >> 32) as usize).min(len.saturating_sub(1))
 }
 
 /// Two independent standard normal `f32` draws from two `u32`s (the Box–Muller transform

@@ -2,8 +2,7 @@
 //! the firmware on QEMU's emulated Cortex-M4F, one state frame and one action frame per
 //! control tick over the emulated UART (QEMU `-serial unix:`; [`pil_link`] frames).
 //!
-//! * [`PilPlant`] is what a plant provides (the stand-in [`DoubleIntegrator`] now; the AUV
-//!   of issue 6 next, see `docs/firmware.md`).
+//! * [`PilPlant`] is what a plant provides; [`AuvPlant`] is the AUV survey of issue 6.
 //! * [`Qemu`] starts the firmware and connects its UART0 to a Unix socket ([`Link`]).
 //! * [`run_episodes`] drives N episodes over any [`Link`], injecting the [`FaultPlan`]'s
 //!   corrupted and dropped state frames, and records what happened in each episode.
@@ -22,65 +21,90 @@ use std::time::{Duration, Instant};
 use pil_link::frame::FALLBACK;
 use pil_link::{Controller, Frame, FrameReader, Kind, MAX_WIRE, Session};
 
+use crate::auv::{Auv, AuvConfig};
+
 /// A plant simulated on the host for a PIL run.
 pub trait PilPlant {
     /// Puts the plant in its initial state for `episode`.
     fn reset(&mut self, episode: u16);
     /// The sensor state sent to the firmware this tick.
     fn observe(&self) -> Vec<f32>;
-    /// Applies the firmware's action for one control period; returns the true stage cost
-    /// (the host's own measure of the episode, independent of the firmware's).
-    fn step(&mut self, action: &[f32]) -> f64;
+    /// Applies the firmware's action for one control period.
+    fn step(&mut self, action: &[f32]);
+    /// The host's own measure of the episode so far (lower is better), from the plant's
+    /// true state in f64, independent of the firmware's.
+    fn cost(&self) -> f64;
 }
 
-/// The stand-in plant: a unit mass on a line, ẍ = u + d, with a constant disturbance `d`
-/// the controller does not know, integrated in f64 by semi-implicit Euler with step `dt`.
-/// Each episode starts at rest at `x0`; the stage cost is (x² + w u²) Δt.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DoubleIntegrator {
-    /// Position.
-    pub x: f64,
-    /// Velocity.
-    pub v: f64,
-    /// Initial position of every episode.
-    pub x0: f64,
-    /// The constant force disturbance.
-    pub disturbance: f64,
-    /// Control period (s).
-    pub dt: f64,
-    /// Weight of u² in the stage cost.
-    pub action_weight: f64,
+/// The AUV survey plant ([`Auv`]) for a PIL run: the firmware sees the policy's state
+/// `[target − p, v]` from [`Auv::measurement`] in `f32` and answers the velocity command.
+/// The host scores the episode with the survey cost of Leonetti et al. (section 5) from the
+/// *true* positions in f64: d if d ≥ D, D − t_D if d < D (d the minimum distance to the
+/// target, t_D the time within D), observed, like the firmware's reward, at the state each
+/// command is computed from (t = 0, 0.1, …, 23.9 s).
+#[derive(Debug, Clone)]
+pub struct AuvPlant {
+    auv: Auv,
+    min_distance: f64,
+    time_within: f64,
 }
 
-impl DoubleIntegrator {
-    /// The PIL demo's plant: from x = 1 at rest, d = 0.5, Δt = 0.05 s, w = 0.01 (the
-    /// stand-in controller's Δt and w).
-    pub const DEMO: Self = Self {
-        x: 1.0,
-        v: 0.0,
-        x0: 1.0,
-        disturbance: 0.5,
-        dt: 0.05,
-        action_weight: 0.01,
-    };
+impl AuvPlant {
+    /// A plant over `Auv::new(config, seed)`.
+    pub fn new(config: AuvConfig, seed: u64) -> Self {
+        Self {
+            auv: Auv::new(config, seed),
+            min_distance: f64::INFINITY,
+            time_within: 0.0,
+        }
+    }
+
+    /// The vehicle.
+    pub fn auv(&self) -> &Auv {
+        &self.auv
+    }
+
+    /// d, the minimum true distance to the target so far (m).
+    pub fn min_distance(&self) -> f64 {
+        self.min_distance
+    }
+
+    /// t_D, the time spent within D so far (s).
+    pub fn time_within(&self) -> f64 {
+        self.time_within
+    }
 }
 
-impl PilPlant for DoubleIntegrator {
+impl PilPlant for AuvPlant {
     fn reset(&mut self, _episode: u16) {
-        self.x = self.x0;
-        self.v = 0.0;
+        self.auv.reset();
+        self.min_distance = f64::INFINITY;
+        self.time_within = 0.0;
     }
 
     fn observe(&self) -> Vec<f32> {
-        vec![self.x as f32, self.v as f32]
+        let (m, t) = (self.auv.measurement(), self.auv.target());
+        let error = (0..3).map(|i| (t[i] - m.position[i]) as f32);
+        error.chain(m.velocity.iter().map(|&v| v as f32)).collect()
     }
 
-    fn step(&mut self, action: &[f32]) -> f64 {
-        let u = action.first().map_or(0.0, |&u| f64::from(u));
-        let cost = (self.x * self.x + self.action_weight * u * u) * self.dt;
-        self.v += (u + self.disturbance) * self.dt;
-        self.x += self.v * self.dt;
-        cost
+    fn step(&mut self, action: &[f32]) {
+        let d = self.auv.distance_to_target();
+        self.min_distance = self.min_distance.min(d);
+        if d < self.auv.config().target_radius {
+            self.time_within += self.auv.dt();
+        }
+        let command = |i: usize| action.get(i).map_or(0.0, |&u| f64::from(u));
+        self.auv.step([command(0), command(1), command(2)]);
+    }
+
+    fn cost(&self) -> f64 {
+        let radius = self.auv.config().target_radius;
+        if self.min_distance >= radius {
+            self.min_distance
+        } else {
+            radius - self.time_within
+        }
     }
 }
 
@@ -331,11 +355,13 @@ impl Drop for Qemu {
 pub struct EpisodeRecord {
     /// Episode number.
     pub episode: u16,
+    /// What the host asked of the episode (the Start frame's values).
+    pub request: Vec<f32>,
     /// The parameters the firmware ran (its Started frame).
     pub theta: Vec<f32>,
-    /// The host's measure of the episode: Σ of the plant's stage costs.
+    /// The host's measure of the episode ([`PilPlant::cost`] at its end).
     pub host_cost: f64,
-    /// The firmware's Report values (stand-in: [cost it told the optimizer, best so far]).
+    /// The firmware's Report values (the AUV learner: [`pil_link::auv::Report`]).
     pub report: Vec<f32>,
     /// Ticks whose action came back flagged FALLBACK.
     pub fallback_ticks: Vec<u16>,
@@ -387,25 +413,29 @@ fn exchange(
 }
 
 /// Runs `config.episodes` episodes of `plant` against the firmware behind `link`, calling
-/// `on_episode` after each; then sends Shutdown.
+/// `on_episode` after each; then sends Shutdown. `request(episode)` gives the values of each
+/// Start frame (what the host asks of the episode).
 pub fn run_episodes(
     link: &mut impl Link,
     plant: &mut impl PilPlant,
     config: RunConfig,
+    request: impl Fn(u16) -> Vec<f32>,
     mut on_episode: impl FnMut(&EpisodeRecord),
 ) -> io::Result<Vec<EpisodeRecord>> {
     let mut records = Vec::new();
     let mut global_tick = 0u64;
     for episode in 0..config.episodes {
+        let request = request(episode);
         let started = exchange(
             link,
-            &Frame::new(Kind::Start, episode, config.ticks),
+            &Frame::new(Kind::Start, episode, config.ticks).with_values(&request),
             None,
             Kind::Started,
         )?;
         plant.reset(episode);
         let mut record = EpisodeRecord {
             episode,
+            request,
             theta: started.values.to_vec(),
             host_cost: 0.0,
             report: Vec::new(),
@@ -423,8 +453,9 @@ pub fn run_episodes(
             if action.flags & FALLBACK != 0 {
                 record.fallback_ticks.push(tick);
             }
-            record.host_cost += plant.step(&action.values);
+            plant.step(&action.values);
         }
+        record.host_cost = plant.cost();
         let report = exchange(link, &Frame::new(Kind::End, episode, 0), None, Kind::Report)?;
         record.report = report.values.to_vec();
         on_episode(&record);
@@ -459,10 +490,9 @@ pub fn reference_run<C: Controller>(
     for record in pil {
         let episode = record.episode;
         let theta = session
-            .on_frame(&Frame::new(Kind::Start, episode, ticks))
+            .on_frame(&Frame::new(Kind::Start, episode, ticks).with_values(&record.request))
             .map_or_else(Vec::new, |f| f.values.to_vec());
         plant.reset(episode);
-        let mut host_cost = 0.0;
         for tick in 0..ticks {
             let action = if record.fallback_ticks.contains(&tick) {
                 session.on_timeout()
@@ -471,8 +501,9 @@ pub fn reference_run<C: Controller>(
                     .on_frame(&Frame::new(Kind::State, episode, tick).with_values(&plant.observe()))
             };
             let values = action.map_or_else(Vec::new, |a| a.values.to_vec());
-            host_cost += plant.step(&values);
+            plant.step(&values);
         }
+        let host_cost = plant.cost();
         let report = session
             .on_frame(&Frame::new(Kind::End, episode, 0))
             .map_or_else(Vec::new, |f| f.values.to_vec());

@@ -47,7 +47,8 @@ pub type Values = heapless::Vec<f32, MAX_VALUES>;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum Kind {
-    /// Host → firmware: start `episode` with `tick` control ticks.
+    /// Host → firmware: start `episode` with `tick` control ticks; values: what the host
+    /// asks of the episode (the AUV learner: an optional [`crate::auv::EpisodeMode`]).
     Start = 1,
     /// Firmware → host: the episode has started; values: the parameters θ it runs.
     Started = 2,
@@ -58,7 +59,7 @@ pub enum Kind {
     /// Host → firmware: `episode` is over.
     End = 5,
     /// Firmware → host: the episode's result; `tick`: fallback ticks, values: controller's
-    /// report (the stand-in: [cost, best cost so far]).
+    /// report (the AUV learner: [`crate::auv::Report`]).
     Report = 6,
     /// Host → firmware: stop.
     Shutdown = 7,

@@ -13,14 +13,16 @@
 //! * [`session`]: the firmware side of the protocol (episode start/end, one action per tick,
 //!   the nominal fallback for a corrupted or missing state frame), generic over a
 //!   [`session::Controller`];
-//! * [`standin`]: a stand-in controller (PD + a linear correction tuned by the coordinate
-//!   search) for a 1-D double integrator, used until the controller layer's `Adapter`
-//!   (issue 5) takes its place.
+//! * [`auv`]: the AUV survey controller of the seeds' first experiment (the library's
+//!   `Adapter` over the 18-parameter corrected PD, the survey reward and an optimizer),
+//!   configured in one place for the firmware and the host's reference run, and its
+//!   [`session::Controller`] implementation [`auv::AuvLearner`].
 //!
 //! # Protocol (one episode)
 //! ```text
 //! host                                   firmware
-//! Start {episode, tick: ticks} ────────► controller.start_episode (ask θ)
+//! Start {episode, tick: ticks,          controller.start_episode (ask θ)
+//!        values: [mode]} ──────────────►   (mode: learn / deploy / nominal, optional)
 //!                      ◄──────────────── Started {episode, values: θ}
 //! State {episode, tick k, values: x} ──► controller.act(x)      (valid frame)
 //!                      ◄──────────────── Action {episode, k, values: u}
@@ -28,7 +30,7 @@
 //!                      ◄──────────────── Action {episode, k, flags: FALLBACK, values: u_nominal}
 //! ... ticks 0..ticks ...
 //! End {episode} ───────────────────────► controller.end_episode (tell cost)
-//!                      ◄──────────────── Report {episode, tick: fallbacks, values: [cost, best]}
+//!                      ◄──────────────── Report {episode, tick: fallbacks, values: auv::Report}
 //! Shutdown ────────────────────────────► Bye, firmware exits
 //! ```
 //! The host sends a frame only after the answer to the previous one, so the firmware's
@@ -42,7 +44,8 @@
 pub mod frame;
 pub mod link;
 pub mod session;
-pub mod standin;
+
+pub mod auv;
 
 pub use frame::{Frame, FrameError, FrameReader, Kind, MAX_VALUES, MAX_WIRE, Values};
 pub use link::{LinkError, read_frame, write_frame};
@@ -58,5 +61,6 @@ const _: () = {
     assert_format::<Kind>();
     assert_format::<LinkError<FrameError>>();
     assert_format::<Stats>();
-    assert_format::<standin::StandinConfig>();
+    assert_format::<auv::EpisodeMode>();
+    assert_format::<auv::Report>();
 };

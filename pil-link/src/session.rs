@@ -11,12 +11,13 @@ use crate::frame::{FALLBACK, Frame, Kind, Values};
 
 /// What runs on the microcontroller: the policy, the reward and the learner.
 ///
-/// The stand-in [`crate::standin::PdCorrection`] implements it now; the controller layer's
-/// `Adapter` (issue 5) implements it next (see `docs/firmware.md`).
+/// [`crate::auv::AuvLearner`] (the controller layer's `Adapter` for the AUV) implements it.
 pub trait Controller {
     /// Episode `episode` starts: choose its parameters (the optimizer's `ask`) and write the
-    /// ones to report to the host into `theta`.
-    fn start_episode(&mut self, episode: u16, theta: &mut Values);
+    /// ones to report to the host into `theta`. `request` holds the Start frame's values
+    /// (what the host asks of the episode; the AUV learner reads an
+    /// [`EpisodeMode`](crate::auv::EpisodeMode) there).
+    fn start_episode(&mut self, episode: u16, request: &[f32], theta: &mut Values);
 
     /// The action for a valid state received for the current tick, into `action`; also
     /// accumulates the episode's cost.
@@ -152,7 +153,7 @@ impl<C: Controller> Session<C> {
             (Kind::Start, _) => {
                 let mut started = Frame::new(Kind::Started, frame.episode, frame.tick);
                 self.controller
-                    .start_episode(frame.episode, &mut started.values);
+                    .start_episode(frame.episode, &frame.values, &mut started.values);
                 self.mode = Mode::Running {
                     started: started.clone(),
                     ticks: frame.tick,
@@ -224,7 +225,7 @@ mod tests {
     }
 
     impl Controller for Probe {
-        fn start_episode(&mut self, _: u16, theta: &mut Values) {
+        fn start_episode(&mut self, _: u16, _: &[f32], theta: &mut Values) {
             self.starts += 1;
             theta.push(self.starts as f32).unwrap();
         }

@@ -17,6 +17,7 @@
 //! [`Pd::update`] differentiates by finite differences, on the error or on the measurement
 //! as [`Derivative`] says.
 
+use super::clamp;
 use crate::optimizer::{Error, Vector};
 
 /// Which signal [`Pd::update`] differentiates.
@@ -111,7 +112,8 @@ impl<const A: usize> Pd<A> {
 
     /// `u` clamped to the output limits (NaN stays NaN, for the caller to detect).
     pub fn saturate(&self, u: &Vector<A>) -> Vector<A> {
-        u.zip_map(&self.limit, |v, l| v.clamp(-l, l))
+        // `f32::clamp` without its panic path (see `controller::clamp`).
+        u.zip_map(&self.limit, |v, l| clamp(v, -l, l))
     }
 
     /// u = sat(k_p ∘ e + k_d ∘ ė). Stateless.
@@ -175,6 +177,40 @@ mod tests {
             Err(Error::InvalidParameter("limit"))
         );
         assert!(pd.with_limit(Vector::from([f32::INFINITY, 1.0])).is_ok());
+    }
+
+    /// Checks: `saturate` (no `f32::clamp`, see `controller::clamp`) equals `f32::clamp` bit
+    /// for bit, signed zeros and infinite limits included, and passes NaN through.
+    #[test]
+    fn saturate_matches_clamp_and_keeps_nan() {
+        let pd = Pd::<3>::try_new(Vector::repeat(1.0), Vector::repeat(1.0))
+            .unwrap()
+            .with_limit(Vector::from([0.5, 2.0, f32::INFINITY]))
+            .unwrap();
+        let values = [
+            0.0,
+            -0.0,
+            0.25,
+            -0.7,
+            1e30,
+            -1e30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MIN_POSITIVE,
+            2.0,
+            -2.0,
+        ];
+        for v in values {
+            let u = pd.saturate(&Vector::repeat(v));
+            for (i, l) in pd.limit().iter().enumerate() {
+                assert_eq!(u[i].to_bits(), v.clamp(-l, *l).to_bits(), "{v} limit {l}");
+            }
+        }
+        assert!(
+            pd.saturate(&Vector::repeat(f32::NAN))
+                .iter()
+                .all(|u| u.is_nan())
+        );
     }
 
     #[test]

@@ -19,7 +19,7 @@
 
 use core::f32::consts::TAU;
 
-use super::{Controller, Pd};
+use super::{Controller, Pd, clamp};
 use crate::optimizer::{Error, Vector};
 
 /// Features φ ∈ R^F of the state and of the time since the episode began.
@@ -115,7 +115,9 @@ impl<const K: usize> PeriodicRbf<K> {
         if t.is_nan() {
             self.period
         } else {
-            t.clamp(self.min_period, self.max_period)
+            // `f32::clamp` without its panic path (see `controller::clamp`); `try_new`
+            // checks min_period ≤ max_period.
+            clamp(t, self.min_period, self.max_period)
         }
     }
 
@@ -195,13 +197,17 @@ impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
         phi: &Vector<F>,
     ) -> Vector<C> {
         let mut c = Vector::<C>::zeros();
+        // Plain slices rather than nalgebra's strided iterators: this runs every control
+        // tick, and the slice loops compile to a tight multiply-accumulate.
         let rows = theta.as_slice().chunks_exact(F);
-        for ((out, row), limit) in c.iter_mut().zip(rows).zip(self.envelope.iter()) {
-            let sum: f32 = row.iter().zip(phi.iter()).map(|(w, p)| w * p).sum();
+        let outputs = c.as_mut_slice().iter_mut().zip(self.envelope.as_slice());
+        for ((out, &limit), row) in outputs.zip(rows) {
+            let sum: f32 = row.iter().zip(phi.as_slice()).map(|(w, p)| w * p).sum();
+            // `f32::clamp` without its panic path (see `controller::clamp`).
             *out = if sum.is_nan() {
                 0.0
             } else {
-                sum.clamp(-limit, *limit)
+                clamp(sum, -limit, limit)
             };
         }
         c

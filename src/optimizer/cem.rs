@@ -413,8 +413,11 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
             }
             self.elite.pop();
         }
-        // len < elite_count ≤ E here, so the insertion cannot fail.
-        let _ = self.elite.insert(rank, sample);
+        // len < elite_count ≤ E here, so the insertion cannot fail; and rank ≤ len always
+        // (a partition point), tested only so that `insert`'s assertion has no panic path.
+        if rank <= self.elite.len() {
+            let _ = self.elite.insert(rank, sample);
+        }
     }
 
     /// Steps 3–5 of the module docs on the kept samples, then starts the next batch.
@@ -425,9 +428,10 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
         for (c, s) in costs.iter_mut().zip(self.elite.iter()) {
             *c = s.cost;
         }
-        self.config
-            .weighting
-            .weights(&costs[..m], self.worst, &mut weights[..m]);
+        // m ≤ E (the elite's capacity): `get` always succeeds; it spares a panic path.
+        if let (Some(costs), Some(weights)) = (costs.get(..m), weights.get_mut(..m)) {
+            self.config.weighting.weights(costs, self.worst, weights);
+        }
 
         let old_mean = self.mean;
         let mut mean = Vector::<N>::zeros();

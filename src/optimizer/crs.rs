@@ -130,7 +130,9 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
     /// The current set S with its costs (only the first [`Self::len`] entries are filled
     /// during Step 0).
     pub fn set(&self) -> (&[Vector<N>], &[f32]) {
-        (&self.points[..self.filled], &self.costs[..self.filled])
+        // filled ≤ M: the `min` changes nothing and spares a bounds check (panic path).
+        let filled = self.filled.min(M);
+        (&self.points[..filled], &self.costs[..filled])
     }
 
     /// Points in S so far.
@@ -143,18 +145,21 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         self.filled == 0
     }
 
-    /// Indices of the worst and best points of the (full) set.
-    fn extremes(&self) -> (usize, usize) {
-        let (mut worst, mut best) = (0, 0);
+    /// Index of the worst point of the (full) set and the worst and best costs,
+    /// (worst, J_max, J_min); the first worst in index order.
+    fn extremes(&self) -> (usize, f32, f32) {
+        // Values carried along with the index: no indexing, so no bounds check to prove.
+        let first = self.costs.first().copied().unwrap_or(0.0);
+        let (mut worst, mut j_max, mut j_min) = (0, first, first);
         for (i, &c) in self.costs.iter().enumerate() {
-            if c > self.costs[worst] {
-                worst = i;
+            if c > j_max {
+                (worst, j_max) = (i, c);
             }
-            if c < self.costs[best] {
-                best = i;
+            if c < j_min {
+                j_min = c;
             }
         }
-        (worst, best)
+        (worst, j_max, j_min)
     }
 
     /// One trial of Step 2 (may lie outside the box).
@@ -162,30 +167,40 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         // Partial Fisher–Yates: order[..=N] becomes a uniform random (N+1)-subset.
         for k in 0..=N {
             let pick = k + random_index(rng, M - k);
-            self.order.swap(k, pick);
+            // Always true (random_index < M − k); the test spares a bounds check.
+            if pick < M {
+                self.order.swap(k, pick);
+            }
         }
-        let subset = &self.order[..=N];
+        // `order` is a permutation of 0..M, so every `get` below succeeds; `get` rather
+        // than indexing because the compiler cannot know it (no panic path).
+        let subset = self.order.get(..=N).unwrap_or(&[]);
+        let point = |i: u16| {
+            let i = usize::from(i);
+            self.points.get(i).zip(self.costs.get(i))
+        };
         let spread = j_max - j_min;
         let phi = N as f32 * spread * spread / self.initial_spread;
-        let mut worst = subset[0] as usize;
+        let first = subset.first().copied().and_then(point);
+        let Some((mut worst_point, mut worst_cost)) = first.map(|(p, &c)| (p, c)) else {
+            return Vector::zeros();
+        };
         let mut eta_sum = 0.0;
-        for &i in subset {
-            let i = i as usize;
-            if self.costs[i] > self.costs[worst] {
-                worst = i;
+        for (p, &c) in subset.iter().filter_map(|&i| point(i)) {
+            if c > worst_cost {
+                (worst_point, worst_cost) = (p, c);
             }
-            eta_sum += 1.0 / (self.costs[i] - j_min + phi);
+            eta_sum += 1.0 / (c - j_min + phi);
         }
         let mut centroid = Vector::<N>::zeros();
         let mut weighted_cost = 0.0;
-        for &i in subset {
-            let i = i as usize;
-            let w = 1.0 / (self.costs[i] - j_min + phi) / eta_sum;
-            centroid += self.points[i] * w;
-            weighted_cost += w * self.costs[i];
+        for (p, &c) in subset.iter().filter_map(|&i| point(i)) {
+            let w = 1.0 / (c - j_min + phi) / eta_sum;
+            centroid += p * w;
+            weighted_cost += w * c;
         }
-        let alpha = 1.0 - (self.costs[worst] - weighted_cost) / (spread + phi);
-        centroid - (self.points[worst] - centroid) * alpha
+        let alpha = 1.0 - (worst_cost - weighted_cost) / (spread + phi);
+        centroid - (worst_point - centroid) * alpha
     }
 
     /// Step 1's stopping test on the full set.
@@ -193,8 +208,8 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         if self.filled < M {
             return;
         }
-        let (worst, best) = self.extremes();
-        if self.costs[worst] - self.costs[best] <= self.config.tolerance {
+        let (_, j_max, j_min) = self.extremes();
+        if j_max - j_min <= self.config.tolerance {
             self.status = Status::Converged;
         }
     }
@@ -211,8 +226,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
         if self.filled < M {
             return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
         }
-        let (worst, best) = self.extremes();
-        let (j_max, j_min) = (self.costs[worst], self.costs[best]);
+        let (_, j_max, j_min) = self.extremes();
         let mut candidate = self.trial(rng, j_max, j_min);
         let mut redraws = 1;
         while !self.bounds.contains(&candidate) && redraws < self.config.max_redraws {
@@ -224,19 +238,23 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
         let theta = self.ledger.accept(cost)?;
-        if self.filled < M {
-            self.points[self.filled] = theta;
-            self.costs[self.filled] = cost;
+        if let (Some(p), Some(c)) = (
+            self.points.get_mut(self.filled),
+            self.costs.get_mut(self.filled),
+        ) {
+            // Step 0: filling the set (filled < M).
+            (*p, *c) = (theta, cost);
             self.filled += 1;
             if self.filled == M {
-                let (worst, best) = self.extremes();
-                self.initial_spread = self.costs[worst] - self.costs[best];
+                let (_, j_max, j_min) = self.extremes();
+                self.initial_spread = j_max - j_min;
             }
         } else {
-            let (worst, _) = self.extremes();
-            if cost < self.costs[worst] {
-                self.points[worst] = theta;
-                self.costs[worst] = cost;
+            let (worst, j_max, _) = self.extremes();
+            if cost < j_max
+                && let (Some(p), Some(c)) = (self.points.get_mut(worst), self.costs.get_mut(worst))
+            {
+                (*p, *c) = (theta, cost);
             }
         }
         self.check_stop();

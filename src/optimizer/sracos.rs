@@ -128,7 +128,9 @@ fn same<const N: usize>(a: &Vector<N>, b: &Vector<N>, first: &[usize]) -> bool {
 
 /// A uniform integer in `0..n` (`n ≥ 1`) by multiply-shift on one `u32`.
 fn below<R: RngCore + ?Sized>(rng: &mut R, n: usize) -> usize {
-    ((u64::from(rng.next_u32()) * n as u64) >> 32) as usize
+    // The result is < n already; the `min` tells the compiler, so indexing with it needs no
+    // bounds check (no panic path). n = 0 gives 0, as before.
+    (((u64::from(rng.next_u32()) * n as u64) >> 32) as usize).min(n.saturating_sub(1))
 }
 
 /// How SRACOS puts the sample displaced from the positive set into the negative set
@@ -334,7 +336,8 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
     }
 
     fn negatives(&self) -> &[Best<N>] {
-        &self.negative[..self.len.saturating_sub(K)]
+        // len ≤ K + M, so the `min` changes nothing; it spares a bounds check (panic path).
+        &self.negative[..self.len.saturating_sub(K).min(M)]
     }
 
     /// Whether `theta` equals a stored sample (exact f32 equality, as ZOOpt's 1e-17);
@@ -370,15 +373,20 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
             return;
         }
         match replacement {
+            // The first worst (farthest) negative, its value carried along with its index
+            // and the slot written through `get_mut`: no bounds check, no panic path.
             Replacement::Worst => {
                 let mut worst = 0;
+                let mut worst_cost = self.negative.first().map_or(f32::INFINITY, |e| e.cost);
                 for (i, e) in self.negative.iter().enumerate() {
-                    if e.cost > self.negative[worst].cost {
-                        worst = i;
+                    if e.cost > worst_cost {
+                        (worst, worst_cost) = (i, e.cost);
                     }
                 }
-                if self.negative[worst].cost > displaced.cost {
-                    self.negative[worst] = displaced;
+                if worst_cost > displaced.cost
+                    && let Some(e) = self.negative.get_mut(worst)
+                {
+                    *e = displaced;
                 }
             }
             Replacement::Random => self.negative[slot % M] = displaced,
@@ -392,7 +400,9 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
                         (farthest, distance) = (i, d);
                     }
                 }
-                self.negative[farthest] = displaced;
+                if let Some(e) = self.negative.get_mut(farthest) {
+                    *e = displaced;
+                }
             }
         }
     }
@@ -400,10 +410,19 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
     /// Moves `positive[at..end]` one place up (dropping `positive[end]`) and puts `entry`
     /// at `at`, with the re-evaluation flags alongside.
     fn shift_in(&mut self, at: usize, end: usize, entry: Best<N>) {
-        self.positive.copy_within(at..end, at + 1);
-        self.resampled.copy_within(at..end, at + 1);
-        self.positive[at] = entry;
-        self.resampled[at] = false;
+        // Callers pass at ≤ end < K; the test only spares `copy_within`'s assertions and
+        // the bounds checks (panic paths).
+        if at <= end && end < K {
+            // `copy_within(at..end, at + 1)`, written out: its assertions are panic paths.
+            let mut i = end;
+            while i > at {
+                self.positive[i] = self.positive[i - 1];
+                self.resampled[i] = self.resampled[i - 1];
+                i -= 1;
+            }
+            self.positive[at] = entry;
+            self.resampled[at] = false;
+        }
     }
 
     /// Re-sorts the (full) positive set after value suppression changed costs; stable.
@@ -771,7 +790,9 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
         if self.status != Status::Running {
             return Err(Error::Stopped);
         }
-        let (archive, batch) = (&self.archive, &self.batch[..self.batch_len]);
+        // batch_len ≤ M: `get` always succeeds and spares a bounds check (panic path).
+        let batch = self.batch.get(..self.batch_len).unwrap_or(&[]);
+        let archive = &self.archive;
         let theta = archive.propose(
             &self.bounds,
             self.config.exploration_rate,

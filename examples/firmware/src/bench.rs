@@ -49,13 +49,25 @@ pub mod sections {
         /// Calibration: nothing between the markers, so its count is the markers' own
         /// overhead, which the script subtracts from every other section.
         empty = 0;
+        /// One control tick of the AUV adapter: `Adapter::control` (N = 18).
+        control = 1;
+        /// The policy correction alone: `LinearPolicy::correction`, clamp(W·φ) (N = 18).
+        correction = 2;
         /// `CoordinateSearch::<18>::ask`.
-        ask = 1;
+        coordinate_ask = 3;
         /// `CoordinateSearch::<18>::tell`.
-        tell = 2;
-        /// Slot for the controller layer (issue 5): one per-tick policy correction
-        /// `u = u_pd + W·φ(x)` of the 18-parameter AUV policy. Measured by
-        /// `measure_controller` in `src/bin/bench.rs` once the policy exists.
-        correction = 3;
+        coordinate_tell = 4;
+        /// `Sracos::<18>::ask`.
+        sracos_ask = 5;
+        /// `Sracos::<18>::tell`.
+        sracos_tell = 6;
+        /// `DiagonalCem::<18, 10, 5>::ask`.
+        cem_ask = 7;
+        /// `DiagonalCem::<18, 10, 5>::tell`.
+        cem_tell = 8;
+        /// `ControlledRandomSearch::<18, 100>::ask`.
+        crs_ask = 9;
+        /// `ControlledRandomSearch::<18, 100>::tell`.
+        crs_tell = 10;
     }
 }

@@ -21,6 +21,13 @@ impl Millis {
         Self { syst, ms: 0 }
     }
 
+    /// Also pends the SysTick exception at every millisecond, so that a core waiting in
+    /// `wfi` wakes up to advance the clock (with interrupts masked by PRIMASK the exception
+    /// is never taken: the waiter clears it, see [`crate::pil`]).
+    pub fn enable_wakeup(&mut self) {
+        self.syst.enable_interrupt();
+    }
+
     /// Milliseconds since `new`. Must be polled at least once per millisecond to be exact;
     /// polled less often, it runs slow, which only stretches a deadline.
     pub fn now(&mut self) -> u32 {

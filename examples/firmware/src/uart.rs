@@ -12,9 +12,13 @@ use core::ptr::{read_volatile, write_volatile};
 /// Base address of UART0 on mps2-an385/an386.
 pub const UART0_BASE: usize = 0x4000_4000;
 
+/// UART0's receive interrupt on mps2-an385/an386 (external interrupt 0; TX is 1).
+pub const UART0_RX_IRQ: u16 = 0;
+
 const DATA: usize = 0x00;
 const STATE: usize = 0x04;
 const CTRL: usize = 0x08;
+const INTSTATUS: usize = 0x0C;
 const BAUDDIV: usize = 0x10;
 
 const STATE_TX_FULL: u32 = 1 << 0;
@@ -22,6 +26,8 @@ const STATE_RX_FULL: u32 = 1 << 1;
 const STATE_RX_OVERRUN: u32 = 1 << 3;
 const CTRL_TX_EN: u32 = 1 << 0;
 const CTRL_RX_EN: u32 = 1 << 1;
+const CTRL_RX_INT_EN: u32 = 1 << 3;
+const INT_RX: u32 = 1 << 1;
 
 /// A received byte was lost because the previous one had not been read (RX overrun).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -58,6 +64,17 @@ impl CmsdkUart {
         uart.write_reg(BAUDDIV, bauddiv.max(16));
         uart.write_reg(CTRL, CTRL_TX_EN | CTRL_RX_EN);
         uart
+    }
+
+    /// Raises the receive interrupt line when a byte arrives (until
+    /// [`CmsdkUart::clear_rx_interrupt`]), so a core waiting in `wfi` wakes up for it.
+    pub fn enable_rx_interrupt(&mut self) {
+        self.write_reg(CTRL, self.read_reg(CTRL) | CTRL_RX_INT_EN);
+    }
+
+    /// Lowers the receive interrupt line (write 1 to clear).
+    pub fn clear_rx_interrupt(&mut self) {
+        self.write_reg(INTSTATUS, INT_RX);
     }
 
     fn read_reg(&self, offset: usize) -> u32 {

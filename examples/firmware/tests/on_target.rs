@@ -1,18 +1,24 @@
 //! The library's core invariants, run on the emulated Cortex-M4F (thumbv7em-none-eabihf,
 //! hardware `f32`, libm) under QEMU with defmt-test: `cargo test` in `examples/firmware/`.
 //!
-//! These mirror the host unit and property tests of `src/optimizer.rs` and
-//! `src/optimizer/coordinate.rs` (the proptest properties become loops over seeded random
-//! cases, as proptest needs std), so target-specific numerics are covered: f32 rounding at
-//! the box faces, NaN handling, libm's `powf` in the objective.
+//! These mirror the host unit and property tests of `src/optimizer.rs`,
+//! `src/optimizer/coordinate.rs`, the controller layer (the policy's envelope, the adapter's
+//! fallbacks) and SRACOS / the diagonal CEM (the proptest properties become loops over seeded
+//! random cases, as proptest needs std), so target-specific numerics are covered: f32
+//! rounding at the box faces, NaN handling, libm's `powf`, `logf`, `cosf` and `sqrtf`.
 #![no_std]
 #![no_main]
 
 use ctrl_adapt_firmware as _; // defmt logger, panic and HardFault handlers that exit QEMU
 
+use ctrl_adapt::controller::{Controller, Mode};
 use ctrl_adapt::optimizer::unit_f32;
-use ctrl_adapt::{Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector};
+use ctrl_adapt::{
+    Bounds, CemConfig, CoordinateConfig, CoordinateSearch, DiagonalCem, Error, Optimizer,
+    Replacement, Sracos, SracosConfig, Status, Suppression, Vector, Weighting,
+};
 use ctrl_adapt_firmware::functions::{ellipsoid, ellipsoid_minimiser};
+use pil_link::auv;
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -35,6 +41,45 @@ fn wild_cost(r: &mut Xoshiro128PlusPlus) -> f32 {
         4 => -f32::MAX,
         5 => f32::MIN_POSITIVE / 4.0,
         _ => uniform(r, -1e3, 1e3),
+    }
+}
+
+/// A value from anywhere in f32 one time in four (NaN, ±inf, subnormals, huge), else
+/// uniform in [−range, range).
+fn wild(r: &mut Xoshiro128PlusPlus, range: f32) -> f32 {
+    match r.next_u32() % 8 {
+        0 => f32::from_bits(r.next_u32()),
+        1 => [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -f32::NAN][(r.next_u32() % 4) as usize],
+        _ => uniform(r, -range, range),
+    }
+}
+
+/// Asks and tells `optimizer` `evaluations` times with wild costs; checks that every
+/// candidate is inside the box, that a non-finite cost is rejected without any change of
+/// state, and that the best cost never increases.
+fn candidates_in_bounds<const N: usize, O>(
+    mut optimizer: O,
+    r: &mut Xoshiro128PlusPlus,
+    evaluations: u32,
+) where
+    O: Optimizer<N> + Clone + PartialEq,
+{
+    let bounds = *optimizer.bounds();
+    let mut best = f32::INFINITY;
+    for _ in 0..evaluations {
+        let Ok(theta) = optimizer.ask(r) else { break };
+        defmt::assert!(bounds.contains(&theta));
+        let cost = wild_cost(r);
+        let before = optimizer.clone();
+        let told = optimizer.tell(cost);
+        defmt::assert_eq!(told.is_ok(), cost.is_finite());
+        if told.is_err() {
+            defmt::assert!(optimizer == before);
+            defmt::assert!(optimizer.tell(uniform(r, 0.0, 10.0)).is_ok());
+        }
+        let now = optimizer.best().map_or(f32::INFINITY, |b| b.cost);
+        defmt::assert!(now <= best);
+        best = now;
     }
 }
 
@@ -299,6 +344,205 @@ mod tests {
         for _ in 0..10_000 {
             let u = unit_f32(&mut r);
             assert!((0.0..1.0).contains(&u));
+        }
+    }
+
+    /// Checks, for the AUV policy (18 weights, state [target − p, v]): for θ and states from
+    /// anywhere in f32 (NaN and infinities included), every correction component is finite
+    /// and within ±0.5 m/s (the envelope); the action is within ±0.5 m/s or NaN (a NaN
+    /// state, for the adapter to catch), and finite for finite states of moderate size;
+    /// θ = 0 gives exactly the nominal PD.
+    #[test]
+    fn policy_correction_stays_in_its_envelope() {
+        let controller = auv::controller().unwrap();
+        let policy = controller.policy();
+        let mut r = rng(21);
+        for _ in 0..2_000 {
+            let theta = Vector::<18>::from_fn(|_, _| wild(&mut r, 2.0));
+            let state = Vector::<6>::from_fn(|_, _| wild(&mut r, 8.0));
+            let c = policy.correction(&theta, &state, 0.0);
+            assert!(
+                c.iter()
+                    .all(|v| v.is_finite() && libm::fabsf(*v) <= auv::C_MAX)
+            );
+            let u = controller.corrected(&theta, &state, 0.0);
+            assert!(
+                u.iter()
+                    .all(|v| v.is_nan() || libm::fabsf(*v) <= auv::V_MAX)
+            );
+            if state.iter().all(|v| v.is_finite() && libm::fabsf(*v) < 1e6) {
+                assert!(u.iter().all(|v| v.is_finite()));
+            }
+            let zero = controller.corrected(&Vector::zeros(), &state, 0.0);
+            let nominal = controller.nominal(&state, 0.0);
+            for (a, b) in zero.iter().zip(nominal.iter()) {
+                assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+            }
+        }
+    }
+
+    /// Checks the AUV adapter's fallbacks over 120 episodes (learning, deploying, nominal,
+    /// some aborted) with NaN and infinite states and observations: every action is finite
+    /// and within ±0.5 m/s; a non-finite state gets the nominal PD (or zero when that is not
+    /// finite either); every learning episode tells a finite cost, the failure cost exactly
+    /// when the episode failed (a faulty tick, a cost with nothing valid observed, an abort),
+    /// and the optimizer counts exactly the learning episodes.
+    #[test]
+    fn adapter_fallbacks_never_tell_a_non_finite_cost() {
+        let mut a = auv::adapter(auv::coordinate_search(u32::MAX).unwrap(), u32::MAX).unwrap();
+        let controller = *a.controller();
+        let mut r = rng(22);
+        let mut learned = 0;
+        for episode in 0..120u32 {
+            let mode = match r.next_u32() % 6 {
+                0 => Mode::Deploy,
+                1 => Mode::Nominal,
+                _ => Mode::Learn,
+            };
+            a.set_mode(mode).unwrap();
+            a.begin_episode(&mut r).unwrap();
+            let mut faulty = false;
+            for _ in 0..(r.next_u32() % 30) {
+                let bad = r.next_u32().is_multiple_of(5);
+                let x = Vector::<6>::from_fn(|_, _| {
+                    if bad {
+                        wild(&mut r, 8.0)
+                    } else {
+                        uniform(&mut r, -8.0, 8.0)
+                    }
+                });
+                let error = Vector::<3>::new(x[0], x[1], x[2]);
+                let u = a.control(&x, &error);
+                assert!(
+                    u.iter()
+                        .all(|v| v.is_finite() && libm::fabsf(*v) <= auv::V_MAX)
+                );
+                if !x.iter().all(|v| v.is_finite()) {
+                    faulty = true; // in every mode: a non-finite state is a faulty tick
+                    let nominal = controller.nominal(&x, 0.0);
+                    let expected = if nominal.iter().all(|v| v.is_finite()) {
+                        nominal
+                    } else {
+                        Vector::zeros()
+                    };
+                    assert!(u == expected);
+                }
+            }
+            let aborted = episode % 9 == 4;
+            let report = if aborted {
+                a.abort_episode()
+            } else {
+                a.end_episode()
+            }
+            .unwrap();
+            let failed = aborted || faulty || !report.cost.is_finite();
+            assert_eq!(report.failed, failed);
+            match report.told {
+                Some(told) => {
+                    learned += 1;
+                    assert!(told.is_finite());
+                    assert_eq!(
+                        told,
+                        if failed {
+                            auv::FAILURE_COST
+                        } else {
+                            report.cost
+                        }
+                    );
+                }
+                None => assert!(report.mode != Mode::Learn),
+            }
+            assert_eq!(a.optimizer().evaluations(), learned);
+        }
+        assert!(learned > 50);
+    }
+
+    /// Checks the PIL learner's fallback (a corrupted or missing state frame): the nominal
+    /// PD on the last valid state; zero without one, or when it is not finite.
+    #[test]
+    fn pil_fallback_is_the_nominal_pd() {
+        use pil_link::Controller as _;
+        let mut l =
+            auv::AuvLearner::try_new(auv::coordinate_search(u32::MAX).unwrap(), u32::MAX, 1)
+                .unwrap();
+        let controller = auv::controller().unwrap();
+        let mut theta = pil_link::Values::new();
+        l.start_episode(0, &[], &mut theta);
+        let mut u = pil_link::Values::new();
+        let mut r = rng(23);
+        for _ in 0..200 {
+            let x = Vector::<6>::from_fn(|_, _| uniform(&mut r, -8.0, 8.0));
+            l.fallback(Some(x.as_slice()), &mut u);
+            assert_eq!(u.as_slice(), controller.nominal(&x, 0.0).as_slice());
+        }
+        for last in [None, Some(&[f32::NAN; 6][..]), Some(&[1.0; 5][..])] {
+            l.fallback(last, &mut u);
+            assert_eq!(u.as_slice(), &[0.0; 3]);
+        }
+    }
+
+    /// Checks SRACOS (every replacement strategy, with value suppression) and the diagonal
+    /// CEM (every weighting) at N = 18 over the AUV box and at N = 4 over random boxes
+    /// (widths 1e-3..1e3), with NaN/inf/extreme costs: every candidate inside the box, a
+    /// non-finite cost rejected with the state unchanged, the best never increasing.
+    #[test]
+    fn sracos_and_cem_candidates_stay_in_bounds() {
+        let mut r = rng(24);
+        candidates_in_bounds::<18, _>(auv::sracos(400).unwrap(), &mut r, 400);
+        candidates_in_bounds::<18, _>(auv::cem(400).unwrap(), &mut r, 400);
+        for k in 0..12u32 {
+            let lower = Vector::<4>::from_fn(|_, _| uniform(&mut r, -1e3, 1e3));
+            let upper = Vector::<4>::from_fn(|i, _| {
+                lower[i] + libm::powf(10.0, uniform(&mut r, -3.0, 3.0))
+            });
+            let bounds = Bounds::try_new(lower, upper).unwrap();
+            let replacement = [
+                Replacement::Worst,
+                Replacement::Random,
+                Replacement::LargestMargin,
+            ][(k % 3) as usize];
+            let suppression = (k % 2 == 1).then_some(Suppression {
+                non_update_allowed: 4,
+                resample_times: 2,
+                balance_rate: 0.5,
+            });
+            let config = SracosConfig {
+                replacement,
+                suppression,
+                uncertain_bits: Some(2),
+                ..SracosConfig::DEFAULT
+            };
+            candidates_in_bounds::<4, _>(
+                Sracos::<4, 2, 6>::try_new(bounds, config).unwrap(),
+                &mut r,
+                150,
+            );
+            let weighting = [
+                Weighting::Cem,
+                Weighting::CmaEs,
+                Weighting::PiBb { h: 10.0 },
+            ][(k % 3) as usize];
+            let mean = bounds.sample_uniform(&mut r);
+            let width = (upper - lower).min();
+            let config = CemConfig {
+                weighting,
+                initial_variance: width * width,
+                max_variance: 4.0 * width * width,
+                ..CemConfig::DEFAULT
+            };
+            candidates_in_bounds::<4, _>(
+                DiagonalCem::<4, 8, 4>::try_new(
+                    bounds,
+                    mean,
+                    CemConfig {
+                        elite: Some(4),
+                        ..config
+                    },
+                )
+                .unwrap(),
+                &mut r,
+                150,
+            );
         }
     }
 }

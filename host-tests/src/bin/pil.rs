@@ -1,35 +1,75 @@
-//! Processor-in-the-loop run: starts the `pil` firmware on QEMU's mps2-an386, simulates the
-//! plant here, exchanges one state frame and one action frame per control tick over the
-//! emulated UART, and prints the learning curve.
+//! Processor-in-the-loop run of the AUV survey: starts the `pil` firmware on QEMU's
+//! mps2-an386 (the library's `Adapter` with the 18-parameter corrected PD and its optimizer),
+//! simulates the AUV here, exchanges one state frame and one action frame per control tick
+//! over the emulated UART, and prints the learning curve.
 //!
 //! ```sh
 //! (cd examples/firmware && cargo build --release)
-//! cargo run --release -p host-tests --bin pil -- [--elf PATH] [--episodes N] [--ticks K]
-//!                                                 [--no-faults] [--firmware-log PATH]
+//! cargo run --release -p host-tests --bin pil -- [--optimizer coordinate|sracos|cem]
+//!     [--elf PATH] [--episodes N] [--ticks K] [--no-faults] [--firmware-log PATH]
 //! ```
 //!
+//! The run: one episode of the bare PD on the target (`Nominal`), N learning episodes
+//! (default 150, the paper's local phase), one episode of the best θ found (`Deploy`), in the
+//! paper's "real" 0.6 m/s current without noise (so a run is exactly repeatable). The
+//! firmware binary must match `--optimizer` (`pil`, `pil_sracos`, `pil_cem`; the default ELF
+//! follows the option); a mismatch shows as a failed comparison with the reference.
+//!
 //! Exits non-zero unless (1) the firmware exits cleanly, (2) every injected fault (a
-//! corrupted or dropped state frame) was answered with the nominal fallback, (3) the
-//! firmware's episode costs and the host's match the pure-host reference run of the same
-//! configuration within a relative 1e-4, and (4) the learned controller beats the bare PD:
-//! the mean host cost of the last five episodes is below the PD's.
+//! corrupted or dropped state frame) was answered with the nominal fallback, (3) the PIL
+//! run's episode returns (the host's and the firmware's) match the pure-host reference run
+//! of the same configuration within [`MATCH_TOLERANCE`] and every θ is identical, and (4) the
+//! learned policy beats the bare PD: the deployed episode's return (host measure) is above
+//! the bare PD's.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
+use ctrl_adapt::controller::Controller as _;
+use ctrl_adapt::optimizer::{Optimizer, Vector};
+use host_tests::auv::AuvConfig;
 use host_tests::pil::{
-    DoubleIntegrator, FaultPlan, PilPlant, Qemu, RunConfig, reference_run, run_episodes,
+    AuvPlant, EpisodeRecord, FaultPlan, PilPlant, Qemu, RunConfig, reference_run, run_episodes,
 };
-use pil_link::standin::{PdCorrection, SEED, StandinConfig};
+use pil_link::auv::{self, AuvLearner, EpisodeMode, Report, SEED};
 
-/// Relative tolerance between the PIL run and the pure-host reference (f32 on the target vs
-/// f32 on the host: both IEEE 754 single precision with round-to-nearest and no fused
-/// multiply-add, so they are expected to agree exactly; the tolerance is the claim).
+/// Tolerance between the PIL run and the pure-host reference, on every episode return
+/// (m or s: |a − b| ≤ tolerance · max(1, |b|)). f32 on the target vs f32 on the host: both
+/// IEEE 754 single precision with round-to-nearest and no fused multiply-add, so they are
+/// expected to agree exactly; the tolerance is the claim.
 const MATCH_TOLERANCE: f64 = 1e-4;
+/// Seed of the AUV plant (no disturbance is on, so it draws nothing).
+const PLANT_SEED: u64 = 1;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Learner {
+    Coordinate,
+    Sracos,
+    Cem,
+}
+
+impl Learner {
+    fn elf_name(self) -> &'static str {
+        match self {
+            Self::Coordinate => "pil",
+            Self::Sracos => "pil_sracos",
+            Self::Cem => "pil_cem",
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            Self::Coordinate => "CoordinateSearch<18> (step 0.25, tolerance 1e-3)",
+            Self::Sracos => "Sracos<18> (ZOOpt defaults)",
+            Self::Cem => "DiagonalCem<18, 10, 5> (CMA-ES weights, sigma0 0.25)",
+        }
+    }
+}
 
 struct Args {
-    elf: PathBuf,
+    learner: Learner,
+    elf: Option<PathBuf>,
     episodes: u16,
     ticks: u16,
     faults: bool,
@@ -37,11 +77,11 @@ struct Args {
 }
 
 fn parse_args() -> Result<Args, String> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut args = Args {
-        elf: root.join("examples/firmware/target/thumbv7em-none-eabihf/release/pil"),
-        episodes: 40,
-        ticks: 200,
+        learner: Learner::Coordinate,
+        elf: None,
+        episodes: 150,
+        ticks: auv::TICKS,
         faults: true,
         log: std::env::temp_dir().join("ctrl-adapt-pil-firmware.log"),
     };
@@ -49,7 +89,15 @@ fn parse_args() -> Result<Args, String> {
     while let Some(arg) = it.next() {
         let mut value = || it.next().ok_or(format!("{arg} needs a value"));
         match arg.as_str() {
-            "--elf" => args.elf = value()?.into(),
+            "--optimizer" => {
+                args.learner = match value()?.as_str() {
+                    "coordinate" => Learner::Coordinate,
+                    "sracos" => Learner::Sracos,
+                    "cem" => Learner::Cem,
+                    other => return Err(format!("unknown optimizer {other}")),
+                }
+            }
+            "--elf" => args.elf = Some(value()?.into()),
             "--episodes" => {
                 args.episodes = value()?.parse().map_err(|e| format!("--episodes: {e}"))?
             }
@@ -59,24 +107,94 @@ fn parse_args() -> Result<Args, String> {
             other => return Err(format!("unknown argument {other}")),
         }
     }
+    if args.episodes > u16::MAX - 2 {
+        return Err("--episodes: at most 65533".into());
+    }
     Ok(args)
 }
 
-/// The bare PD's episode cost (no correction, no faults), on the host.
-fn nominal_cost(ticks: u16) -> f64 {
-    let pd = PdCorrection::try_new(StandinConfig::DEFAULT, SEED).expect("valid config");
-    let mut plant = DoubleIntegrator::DEMO;
-    plant.reset(0);
-    (0..ticks)
-        .map(|_| {
-            let u = pd.nominal(plant.x as f32, plant.v as f32);
-            plant.step(&[u])
-        })
-        .sum()
+fn plant() -> AuvPlant {
+    AuvPlant::new(AuvConfig::REAL, PLANT_SEED)
 }
 
-fn relative(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs().max(1e-12)
+/// One clean host episode (no link, no faults) of the AUV controller with correction θ
+/// (`None`: the bare PD); the host's cost.
+fn host_episode(theta: Option<&Vector<{ auv::P }>>, ticks: u16) -> f64 {
+    let controller = auv::controller().expect("documented configuration");
+    let mut plant = plant();
+    plant.reset(0);
+    for _ in 0..ticks {
+        let x = Vector::<{ auv::S }>::from_column_slice(&plant.observe());
+        let u = match theta {
+            Some(t) => controller.corrected(t, &x, 0.0),
+            None => controller.nominal(&x, 0.0),
+        };
+        plant.step(u.as_slice());
+    }
+    plant.cost()
+}
+
+/// The episode's mode: the bare PD first, then learning, the best θ last.
+fn mode_of(episode: u16, learning: u16) -> EpisodeMode {
+    match episode {
+        0 => EpisodeMode::Nominal,
+        e if e <= learning => EpisodeMode::Learn,
+        _ => EpisodeMode::Deploy,
+    }
+}
+
+fn differs(a: f64, b: f64) -> f64 {
+    if a == b {
+        0.0
+    } else {
+        (a - b).abs() / b.abs().max(1.0)
+    }
+}
+
+fn report_of(values: &[f32]) -> Report {
+    Report::read(values).unwrap_or(Report {
+        cost: f32::NAN,
+        told: f32::NAN,
+        best: f32::NAN,
+        mode: None,
+        faulty_ticks: 0,
+    })
+}
+
+/// The firmware's learner over `optimizer`, as `examples/firmware/src/bin/pil*.rs` build it.
+fn learner<O: Optimizer<{ auv::P }>>(
+    optimizer: Result<O, ctrl_adapt::optimizer::Error>,
+) -> AuvLearner<O> {
+    optimizer
+        .and_then(|o| AuvLearner::try_new(o, u32::MAX, SEED))
+        .expect("documented configuration")
+}
+
+/// The replay of `records` on the host with `learner`: (max difference of the host's
+/// returns, of the firmware's returns, whether every θ is identical).
+fn compare<O: Optimizer<{ auv::P }>>(
+    learner: AuvLearner<O>,
+    ticks: u16,
+    records: &[EpisodeRecord],
+) -> (f64, f64, bool) {
+    let mut replay_plant = plant();
+    let reference = reference_run(learner, &mut replay_plant, ticks, records);
+    let (mut host, mut fw, mut theta_equal) = (0.0f64, 0.0f64, reference.len() == records.len());
+    for (r, q) in records.iter().zip(&reference) {
+        host = host.max(differs(r.host_cost, q.host_cost));
+        let (a, b) = (report_of(&r.report), report_of(&q.report));
+        for (x, y) in [(a.cost, b.cost), (a.told, b.told), (a.best, b.best)] {
+            // NaN (nothing told yet) must be NaN on both sides.
+            let d = match (x.is_nan(), y.is_nan()) {
+                (true, true) => 0.0,
+                (false, false) => differs(f64::from(x), f64::from(y)),
+                _ => f64::INFINITY,
+            };
+            fw = fw.max(d);
+        }
+        theta_equal &= r.theta == q.theta;
+    }
+    (host, fw, theta_equal)
 }
 
 fn main() -> ExitCode {
@@ -87,8 +205,15 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let elf = args.elf.clone().unwrap_or_else(|| {
+        root.join("examples/firmware/target/thumbv7em-none-eabihf/release")
+            .join(args.learner.elf_name())
+    });
+    let learning = args.episodes;
+    let total = learning + 2;
     let config = RunConfig {
-        episodes: args.episodes,
+        episodes: total,
         ticks: args.ticks,
         faults: if args.faults {
             FaultPlan {
@@ -99,44 +224,48 @@ fn main() -> ExitCode {
             FaultPlan::NONE
         },
     };
-    let nominal = nominal_cost(args.ticks);
+    let bare = host_episode(None, args.ticks);
     println!(
-        "PIL: 1-D double integrator (d = {}) on the host, PD + coordinate-search-tuned correction in the firmware (QEMU mps2-an386)",
-        DoubleIntegrator::DEMO.disturbance
+        "PIL: AUV survey (0.6 m/s current) on the host; Adapter + {} in the firmware (QEMU mps2-an386)",
+        args.learner.describe()
     );
     println!(
-        "{} episodes x {} ticks; faults: {:?}; firmware log: {}",
-        args.episodes,
+        "1 bare-PD episode, {learning} learning episodes, 1 episode of the best theta; {} ticks of {} s; faults: {:?}",
         args.ticks,
-        config.faults,
-        args.log.display()
+        auv::DT,
+        config.faults
     );
-    println!("bare PD cost: {nominal:.6}\n");
+    println!("firmware: {}; log: {}", elf.display(), args.log.display());
     println!(
-        "{:>7}  {:>10}  {:>10}  {:>10}  {:>9}  {:>8}  theta",
-        "episode", "host cost", "fw cost", "fw best", "fallbacks", "injected"
+        "bare PD (host only, no faults): return J = {:.4} (J = -d if d >= D, t_D - D if d < D)\n",
+        -bare
+    );
+    println!(
+        "{:>7}  {:>7}  {:>9}  {:>9}  {:>9}  {:>9}  {:>8}",
+        "episode", "mode", "host J", "fw J", "fw best J", "fallbacks", "injected"
     );
 
     let started = Instant::now();
-    let (mut qemu, mut link) = match Qemu::start(&args.elf, &args.log) {
+    let (mut qemu, mut link) = match Qemu::start(&elf, &args.log) {
         Ok(q) => q,
         Err(e) => {
-            eprintln!("pil: cannot start the firmware {}: {e}", args.elf.display());
+            eprintln!("pil: cannot start the firmware {}: {e}", elf.display());
             return ExitCode::FAILURE;
         }
     };
-    let mut plant = DoubleIntegrator::DEMO;
-    let run = run_episodes(&mut link, &mut plant, config, |r| {
-        let value = |i: usize| r.report.get(i).copied().unwrap_or(f32::NAN);
+    let mut run_plant = plant();
+    let request = |e: u16| vec![mode_of(e, learning).code()];
+    let run = run_episodes(&mut link, &mut run_plant, config, request, |r| {
+        let report = report_of(&r.report);
         println!(
-            "{:>7}  {:>10.6}  {:>10.6}  {:>10.6}  {:>9}  {:>8}  {:.3?}",
+            "{:>7}  {:>7}  {:>9.4}  {:>9.4}  {:>9.4}  {:>9}  {:>8}",
             r.episode,
-            r.host_cost,
-            value(0),
-            value(1),
+            format!("{:?}", mode_of(r.episode, learning)),
+            -r.host_cost,
+            -report.cost,
+            -report.best,
             r.fallback_ticks.len(),
             r.injected.len(),
-            r.theta
         );
     });
     let records = match run {
@@ -152,18 +281,15 @@ fn main() -> ExitCode {
     let elapsed = started.elapsed();
     let status = qemu.wait(Duration::from_secs(10));
 
-    let controller = PdCorrection::try_new(StandinConfig::DEFAULT, SEED).expect("valid config");
-    let mut replay_plant = DoubleIntegrator::DEMO;
-    let reference = reference_run(controller, &mut replay_plant, args.ticks, &records);
-    let mut worst_host = 0.0f64;
-    let mut worst_fw = 0.0f64;
-    let mut theta_equal = true;
-    for (r, q) in records.iter().zip(&reference) {
-        worst_host = worst_host.max(relative(r.host_cost, q.host_cost));
-        let fw = |v: &[f32]| f64::from(v.first().copied().unwrap_or(f32::NAN));
-        worst_fw = worst_fw.max(relative(fw(&r.report), fw(&q.report)));
-        theta_equal &= r.theta == q.theta;
-    }
+    let (worst_host, worst_fw, theta_equal) = match args.learner {
+        Learner::Coordinate => compare(
+            learner(auv::coordinate_search(u32::MAX)),
+            args.ticks,
+            &records,
+        ),
+        Learner::Sracos => compare(learner(auv::sracos(u32::MAX)), args.ticks, &records),
+        Learner::Cem => compare(learner(auv::cem(u32::MAX)), args.ticks, &records),
+    };
     let missed: Vec<(u16, u16)> = records
         .iter()
         .flat_map(|r| {
@@ -175,15 +301,16 @@ fn main() -> ExitCode {
         .collect();
     let injected: usize = records.iter().map(|r| r.injected.len()).sum();
     let fallbacks: usize = records.iter().map(|r| r.fallback_ticks.len()).sum();
-    let tail = records.len().clamp(1, 5);
-    let learned = records
-        .iter()
-        .rev()
-        .take(tail)
-        .map(|r| r.host_cost)
-        .sum::<f64>()
-        / tail as f64;
-    let ticks_total = u32::from(args.episodes) * u32::from(args.ticks);
+    let deployed = records.last();
+    let learned = deployed.map_or(f64::NAN, |r| r.host_cost);
+    let learned_theta: Option<Vector<{ auv::P }>> = deployed
+        .filter(|r| r.theta.len() == auv::P)
+        .map(|r| Vector::from_column_slice(&r.theta));
+    let learned_clean = learned_theta
+        .as_ref()
+        .map_or(f64::NAN, |t| host_episode(Some(t), args.ticks));
+    let on_target_bare = records.first().map_or(f64::NAN, |r| r.host_cost);
+    let ticks_total = u32::from(total) * u32::from(args.ticks);
 
     println!();
     println!(
@@ -199,7 +326,7 @@ fn main() -> ExitCode {
         link.corrupt_received
     );
     println!(
-        "PIL vs pure-host reference: max relative difference {worst_host:.2e} (host cost), {worst_fw:.2e} (firmware cost), theta {} (tolerance {MATCH_TOLERANCE:.0e})",
+        "PIL vs pure-host reference: max difference of the returns {worst_host:.2e} (host measure), {worst_fw:.2e} (firmware's cost, told, best); theta {} (tolerance {MATCH_TOLERANCE:.0e} relative, absolute below 1)",
         if theta_equal {
             "identical"
         } else {
@@ -207,9 +334,15 @@ fn main() -> ExitCode {
         }
     );
     println!(
-        "learning: mean cost of the last {tail} episodes {learned:.6} vs bare PD {nominal:.6} ({:+.1}%)",
-        100.0 * (learned - nominal) / nominal
+        "return J: bare PD {:.4} (on the target with faults: {:.4}); learned, deployed on the target {:.4} (the same theta on the host without faults: {:.4})",
+        -bare, -on_target_bare, -learned, -learned_clean
     );
+    if let Some(t) = learned_theta {
+        println!("learned W (row-major 3x6, rows x, y, z; columns e_x e_y e_z v_x v_y v_z):");
+        for row in t.as_slice().chunks(auv::S) {
+            println!("  {row:>7.3?}");
+        }
+    }
 
     let mut ok = true;
     match status {
@@ -233,8 +366,8 @@ fn main() -> ExitCode {
         eprintln!("FAIL: the PIL run does not match the pure-host reference");
         ok = false;
     }
-    if learned.partial_cmp(&nominal) != Some(std::cmp::Ordering::Less) {
-        eprintln!("FAIL: learning did not beat the bare PD");
+    if learned.partial_cmp(&bare) != Some(std::cmp::Ordering::Less) {
+        eprintln!("FAIL: the learned policy did not beat the bare PD");
         ok = false;
     }
     if ok {

@@ -80,26 +80,34 @@ impl Region {
         let ub = uncertain_bits.min(N).min(MAX_UNCERTAIN_BITS);
         for j in (N - ub)..N {
             let t = below(rng, j + 1);
-            let d = if region.dims[..region.count].contains(&t) {
-                j
-            } else {
-                t
-            };
-            region.dims[region.count] = d;
-            region.lower[region.count] = bounds.lower()[d];
-            region.upper[region.count] = bounds.upper()[d];
-            region.count += 1;
+            let d = if region.dims().contains(&t) { j } else { t };
+            // count < ub ≤ MAX_UNCERTAIN_BITS and d ≤ j < N: every `get` succeeds (they
+            // spare bounds checks, i.e. panic paths).
+            let i = region.count;
+            if let (Some(dim), Some(lower), Some(upper), Some(&lo), Some(&hi)) = (
+                region.dims.get_mut(i),
+                region.lower.get_mut(i),
+                region.upper.get_mut(i),
+                bounds.lower().get(d),
+                bounds.upper().get(d),
+            ) {
+                (*dim, *lower, *upper) = (d, lo, hi);
+                region.count += 1;
+            }
         }
 
         // `inside[..remaining]` indexes the negatives still inside the box.
         let mut inside: [usize; M] = core::array::from_fn(|i| i);
         let mut remaining = M;
         let mut attempts = 0;
+        // `inside` holds indices < M and remaining ≤ M: the `get`s below always succeed
+        // and only spare bounds checks (panic paths); k < N by `below`.
+        let coordinate = |i: usize, k: usize| negatives.get(i).map_or(0.0, |e| e.theta[k]);
         while remaining > 0 && attempts < max_cut_attempts(M) {
             attempts += 1;
             let k = below(rng, N);
-            let chosen = inside[below(rng, remaining)];
-            let (p, q) = (positive[k], negatives[chosen].theta[k]);
+            let chosen = inside.get(below(rng, remaining)).copied().unwrap_or(0);
+            let (p, q) = (positive[k], coordinate(chosen, k));
             let r = between(p, q, unit_f32(rng));
             // Which side of the cut a negative must be on to leave the box.
             let leaves_above = p < q;
@@ -115,12 +123,15 @@ impl Region {
                 region.cut(k, |face| face.0 = r);
             }
             let mut i = 0;
-            while i < remaining {
-                let x = negatives[inside[i]].theta[k];
+            while let Some(&n) = inside.get(i).filter(|_| i < remaining) {
+                let x = coordinate(n, k);
                 let leaves = if leaves_above { x >= r } else { x <= r };
                 if leaves {
                     remaining -= 1;
-                    inside.swap(i, remaining);
+                    // i ≤ remaining < M: the test only spares `swap`'s bounds checks.
+                    if remaining < M {
+                        inside.swap(i, remaining);
+                    }
                 } else {
                     i += 1;
                 }
@@ -131,10 +142,12 @@ impl Region {
 
     /// Applies a cut on coordinate `k` to the stored faces, if `k` is uncertain.
     fn cut(&mut self, k: usize, apply: impl FnOnce(&mut (f32, f32))) {
-        if let Some(i) = self.dims[..self.count].iter().position(|&d| d == k) {
-            let mut face = (self.lower[i], self.upper[i]);
+        if let Some(i) = self.dims().iter().position(|&d| d == k)
+            && let (Some(lower), Some(upper)) = (self.lower.get_mut(i), self.upper.get_mut(i))
+        {
+            let mut face = (*lower, *upper);
             apply(&mut face);
-            (self.lower[i], self.upper[i]) = face;
+            (*lower, *upper) = face;
         }
     }
 
@@ -146,15 +159,20 @@ impl Region {
         rng: &mut R,
     ) -> Vector<N> {
         let mut x = *positive;
-        for i in 0..self.count {
-            x[self.dims[i]] = between(self.lower[i], self.upper[i], unit_f32(rng));
+        let faces = self.lower.iter().zip(self.upper.iter());
+        for (&d, (&lower, &upper)) in self.dims().iter().zip(faces) {
+            // d < N always (an uncertain coordinate); the RNG advances either way.
+            let value = between(lower, upper, unit_f32(rng));
+            if let Some(v) = x.get_mut(d) {
+                *v = value;
+            }
         }
         x
     }
 
     /// The uncertain coordinates.
     pub(super) fn dims(&self) -> &[usize] {
-        &self.dims[..self.count]
+        self.dims.get(..self.count).unwrap_or(&[])
     }
 
     /// The uncertain coordinates and their faces `(dim, lower, upper)`.

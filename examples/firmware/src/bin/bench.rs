@@ -1,76 +1,120 @@
-//! Footprint benchmark: runs `CoordinateSearch<18>` on the 18-D ellipsoid with every `ask`
-//! and `tell` between exec-trace markers ([`ctrl_adapt_firmware::bench`]), and prints the
-//! `size_of` figures. `scripts/footprint` runs it under QEMU with an instruction trace.
+//! Footprint benchmark of the optimizers: every measured call sits between exec-trace markers
+//! ([`ctrl_adapt_firmware::bench`]); `scripts/footprint` runs this firmware under QEMU with an
+//! instruction trace and counts the instructions of each call. Measured: one `ask` and one
+//! `tell` of each optimizer over the AUV box of [`pil_link::auv`] (N = 18), 400 evaluations
+//! each, on the 18-D ill-conditioned ellipsoid (its minimiser is inside the box): the
+//! coordinate search, SRACOS, the diagonal CEM and the controlled random search (100 points).
+//! The control tick is measured by the `tick` firmware.
+//!
+//! It also prints the `size_of` of each optimizer and of the AUV adapter around it.
 #![no_std]
 #![no_main]
 
-use ctrl_adapt::{Bounds, CoordinateConfig, CoordinateSearch, Optimizer, Status, Vector};
+use core::mem::size_of;
+
+use ctrl_adapt::{CoordinateSearch, Error, Optimizer, Sracos, Status};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, functions, stack};
+use pil_link::auv::{self, AuvAdapter, AuvCem, AuvCrs};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
-const N: usize = 18;
-/// Measured evaluations: enough to pass through every phase of the state machine (start,
-/// probes, expansions, contractions, several complete sweeps over the 36 directions).
+const N: usize = auv::P;
+/// Measured evaluations per optimizer: enough to pass through every phase of their state
+/// machines (the coordinate search's probes, expansions, contractions and several sweeps;
+/// SRACOS's 12 initial samples and the model updates; 40 CEM updates; CRS's 100 initial
+/// points and 300 trial points).
 const MEASURED: u32 = 400;
+
+/// Logs `footprint: size_of NAME = N`.
+macro_rules! log_size {
+    ($name:literal, $t:ty) => {
+        defmt::info!(
+            "footprint: size_of {=str} = {=usize}",
+            $name,
+            size_of::<$t>()
+        )
+    };
+}
+
+/// Runs `MEASURED` ask/tell pairs of `$optimizer` on the ellipsoid, each call between the
+/// markers of sections `$ask` and `$tell`.
+macro_rules! measure_optimizer {
+    ($optimizer:expr, $ask:ident, $tell:ident) => {{
+        let mut optimizer = $optimizer?;
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+        let ellipsoid = functions::Ellipsoid::<N>::new();
+        for _ in 0..MEASURED {
+            if optimizer.status() != Status::Running {
+                break;
+            }
+            let theta = sections::$ask::measure(|| optimizer.ask(&mut rng))?;
+            let cost = ellipsoid.eval(&theta);
+            sections::$tell::measure(|| optimizer.tell(cost))?;
+        }
+        defmt::info!(
+            "footprint: measured {=str} + tell pairs = {=u32}",
+            stringify!($ask),
+            optimizer.evaluations()
+        );
+        Ok::<(), Error>(())
+    }};
+}
 
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    defmt::info!(
-        "footprint: size_of CoordinateSearch<18> = {=usize}",
-        core::mem::size_of::<CoordinateSearch<N>>()
+    log_size!("CoordinateSearch<18>", CoordinateSearch<N>);
+    log_size!("Sracos<18>", Sracos<N>);
+    log_size!("DiagonalCem<18, 10, 5>", AuvCem);
+    log_size!("ControlledRandomSearch<18, 100>", AuvCrs);
+    log_size!(
+        "Adapter with CoordinateSearch<18>",
+        AuvAdapter<CoordinateSearch<N>>
+    );
+    log_size!("Adapter with Sracos<18>", AuvAdapter<Sracos<N>>);
+    log_size!("Adapter with DiagonalCem<18, 10, 5>", AuvAdapter<AuvCem>);
+    log_size!(
+        "Adapter with ControlledRandomSearch<18, 100>",
+        AuvAdapter<AuvCrs>
     );
     for _ in 0..8 {
         sections::empty::measure(|| ());
     }
-    match measure_coordinate_search() {
-        Ok(()) => {}
-        Err(e) => {
-            defmt::error!("benchmark failed: {}", e);
-            exit_failure()
-        }
+    let measured = coordinate_search()
+        .and_then(|()| sracos())
+        .and_then(|()| cem())
+        .and_then(|()| crs());
+    if let Err(e) = measured {
+        defmt::error!("benchmark failed: {}", e);
+        exit_failure()
     }
-    measure_controller();
     defmt::info!("footprint: peak stack bench = {=u32}", stack::peak_bytes());
     exit_success()
 }
 
-/// `MEASURED` ask+tell pairs of the coordinate search at N = 18.
-fn measure_coordinate_search() -> Result<(), ctrl_adapt::Error> {
-    let bounds = Bounds::<N>::uniform(-2.0, 2.0)?;
-    let config = CoordinateConfig {
-        initial_step: 0.5,
-        tolerance: 1e-5,
-        ..CoordinateConfig::DEFAULT
-    };
-    let mut search = CoordinateSearch::try_new(bounds, Vector::<N>::repeat(-1.0), config)?;
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-    let ellipsoid = functions::Ellipsoid::<N>::new();
-    for _ in 0..MEASURED {
-        if search.status() != Status::Running {
-            break;
-        }
-        let theta = sections::ask::measure(|| search.ask(&mut rng))?;
-        let cost = ellipsoid.eval(&theta);
-        sections::tell::measure(|| search.tell(cost))?;
-    }
-    defmt::info!(
-        "footprint: measured ask+tell pairs = {=u32}",
-        search.evaluations()
-    );
-    Ok(())
+// One function per optimizer, never inlined, so that each one's state lives in its own
+// stack frame and the peak stack is that of the largest, not of all four together.
+
+#[inline(never)]
+fn coordinate_search() -> Result<(), Error> {
+    measure_optimizer!(
+        auv::coordinate_search(u32::MAX),
+        coordinate_ask,
+        coordinate_tell
+    )
 }
 
-/// Slot for the controller layer (issue 5). When `LinearPolicy` and `Adapter` exist:
-/// 1. build the 18-parameter AUV policy and an `Adapter` around `CoordinateSearch<18>`;
-/// 2. log `footprint: size_of Adapter<..> = {}` like the line in `main`;
-/// 3. call the per-tick correction a few hundred times on varied states, each inside
-///    `sections::correction::measure(|| policy.correction(&state, &theta))`.
-///
-/// `scripts/footprint` then reports the `correction` section and the adapter's size with no
-/// change to the script.
-fn measure_controller() {
-    // Nothing to measure until the controller layer lands; the `correction` markers are never
-    // called, and the script prints "not measured yet" for that row.
+#[inline(never)]
+fn sracos() -> Result<(), Error> {
+    measure_optimizer!(auv::sracos(u32::MAX), sracos_ask, sracos_tell)
+}
+
+#[inline(never)]
+fn cem() -> Result<(), Error> {
+    measure_optimizer!(auv::cem(u32::MAX), cem_ask, cem_tell)
+}
+
+#[inline(never)]
+fn crs() -> Result<(), Error> {
+    measure_optimizer!(auv::crs(u32::MAX), crs_ask, crs_tell)
 }

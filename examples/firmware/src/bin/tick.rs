@@ -1,0 +1,79 @@
+//! Footprint benchmark of one control tick (`scripts/footprint` runs it under QEMU with an
+//! instruction trace, like `bench`): `Adapter::control` of the AUV adapter (the PD, the
+//! 18-weight correction, the envelope checks and the survey reward's bookkeeping) and the
+//! policy correction alone (`LinearPolicy::correction`: φ, W·φ and the clamp), each on the
+//! 240 states of an AUV episode. The script builds it with both release profiles ("s" and
+//! `release-speed`, opt-level 3).
+#![no_std]
+#![no_main]
+
+use ctrl_adapt::controller::{Adapter, Mode};
+use ctrl_adapt::optimizer::unit_f32;
+use ctrl_adapt::{CoordinateSearch, Error, Vector};
+use ctrl_adapt_firmware::bench::sections;
+use ctrl_adapt_firmware::{exit_failure, exit_success, stack};
+use pil_link::auv::{self, AuvAdapter};
+use rand_core::SeedableRng;
+use rand_xoshiro::Xoshiro128PlusPlus;
+
+const N: usize = auv::P;
+/// Measured control ticks: one AUV episode.
+const TICKS: u32 = auv::TICKS as u32;
+
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    for _ in 0..8 {
+        sections::empty::measure(|| ());
+    }
+    if let Err(e) = measure_controller() {
+        defmt::error!("benchmark failed: {}", e);
+        exit_failure()
+    }
+    defmt::info!("footprint: peak stack tick = {=u32}", stack::peak_bytes());
+    exit_success()
+}
+
+/// One AUV episode of control ticks through the adapter, then the policy correction alone
+/// on the same states. θ is a uniform draw from the box (deployed, so every tick runs the
+/// corrected law); the states are uniform over errors of ±6 m and velocities of ±0.6 m/s,
+/// so the PD and the correction saturate on some axes of some ticks and not on others.
+#[inline(never)]
+fn measure_controller() -> Result<(), Error> {
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(2);
+    let bounds = auv::bounds()?;
+    let theta = bounds.sample_uniform(&mut rng);
+    let mut adapter: AuvAdapter<CoordinateSearch<N>> = Adapter::try_new(
+        auv::coordinate_search(u32::MAX)?,
+        auv::controller()?,
+        ctrl_adapt::reward::SurveyReward::try_new(auv::RADIUS)?,
+        auv::adapter_config(u32::MAX),
+        theta,
+    )?;
+    adapter.set_mode(Mode::Deploy)?;
+    adapter.begin_episode(&mut rng)?;
+    let state = |rng: &mut Xoshiro128PlusPlus| {
+        Vector::<{ auv::S }>::from_fn(|i, _| {
+            let range = if i < 3 { 6.0 } else { 0.6 };
+            range * (2.0 * unit_f32(rng) - 1.0)
+        })
+    };
+    let mut states = Xoshiro128PlusPlus::seed_from_u64(3);
+    for _ in 0..TICKS {
+        let x = state(&mut states);
+        let error = Vector::<3>::new(x[0], x[1], x[2]);
+        sections::control::measure(|| adapter.control(&x, &error));
+    }
+    let report = adapter.end_episode()?;
+    defmt::info!(
+        "footprint: measured control ticks = {=u32} (cost {=f32})",
+        report.ticks,
+        report.cost
+    );
+    let policy = *adapter.controller().policy();
+    let mut states = Xoshiro128PlusPlus::seed_from_u64(3);
+    for _ in 0..TICKS {
+        let x = state(&mut states);
+        sections::correction::measure(|| policy.correction(&theta, &x, 0.0));
+    }
+    Ok(())
+}
