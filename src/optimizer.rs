@@ -281,6 +281,33 @@ pub trait Optimizer<const N: usize> {
     fn bounds(&self) -> &Bounds<N>;
 }
 
+/// The five [`Optimizer`] accessors every algorithm answers the same way, from its `ledger`,
+/// `status` and `bounds` fields; used inside each `impl Optimizer<N> for …` block.
+macro_rules! ledger_accessors {
+    () => {
+        fn best(&self) -> Option<$crate::optimizer::Best<N>> {
+            self.ledger.best()
+        }
+
+        fn pending(&self) -> Option<&$crate::optimizer::Vector<N>> {
+            self.ledger.pending()
+        }
+
+        fn evaluations(&self) -> u32 {
+            self.ledger.evaluations()
+        }
+
+        fn status(&self) -> $crate::optimizer::Status {
+            self.status
+        }
+
+        fn bounds(&self) -> &$crate::optimizer::Bounds<N> {
+            &self.bounds
+        }
+    };
+}
+pub(crate) use ledger_accessors;
+
 /// The book-keeping every algorithm shares: the pending candidate, the evaluation count
 /// against the budget, and the best (θ, cost) so far. Keeping it in one place makes the
 /// "rejected call changes nothing" rule hold the same way in every optimizer.

@@ -96,7 +96,8 @@
 use heapless::Vec;
 use rand_core::RngCore;
 
-use super::{Best, Bounds, Error, Ledger, Optimizer, Status, Vector, normal_pair_f32};
+use super::ledger_accessors;
+use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, normal_pair_f32};
 
 /// How the costs of a batch become the probabilities P_k of the update (paper section 3.3).
 /// Every scheme gives weights that are non-negative, sum to 1 and do not increase with cost.
@@ -496,30 +497,13 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
         Ok(())
     }
 
-    fn best(&self) -> Option<Best<N>> {
-        self.ledger.best()
-    }
-
-    fn pending(&self) -> Option<&Vector<N>> {
-        self.ledger.pending()
-    }
-
-    fn evaluations(&self) -> u32 {
-        self.ledger.evaluations()
-    }
-
-    fn status(&self) -> Status {
-        self.status
-    }
-
-    fn bounds(&self) -> &Bounds<N> {
-        &self.bounds
-    }
+    ledger_accessors!();
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::optimizer::Best;
     use proptest::prelude::*;
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;

@@ -51,7 +51,8 @@
 
 use rand_core::RngCore;
 
-use super::{Best, Bounds, Error, Ledger, Optimizer, Status, Vector};
+use super::ledger_accessors;
+use super::{Bounds, Error, Ledger, Optimizer, Status, Vector};
 
 /// Parameters of [`CoordinateSearch`]. Plain fields, checked by [`CoordinateConfig::validate`]
 /// (and by the optimizer's constructors).
@@ -440,30 +441,13 @@ impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
         Ok(())
     }
 
-    fn best(&self) -> Option<Best<N>> {
-        self.ledger.best()
-    }
-
-    fn pending(&self) -> Option<&Vector<N>> {
-        self.ledger.pending()
-    }
-
-    fn evaluations(&self) -> u32 {
-        self.ledger.evaluations()
-    }
-
-    fn status(&self) -> Status {
-        self.status
-    }
-
-    fn bounds(&self) -> &Bounds<N> {
-        &self.bounds
-    }
+    ledger_accessors!();
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::optimizer::Best;
     use proptest::prelude::*;
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;

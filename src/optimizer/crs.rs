@@ -26,7 +26,8 @@
 
 use rand_core::RngCore;
 
-use super::{Best, Bounds, Error, Ledger, Optimizer, Status, Vector, random_index};
+use super::ledger_accessors;
+use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, random_index};
 
 /// Parameters of [`ControlledRandomSearch`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -264,30 +265,13 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
         Ok(())
     }
 
-    fn best(&self) -> Option<Best<N>> {
-        self.ledger.best()
-    }
-
-    fn pending(&self) -> Option<&Vector<N>> {
-        self.ledger.pending()
-    }
-
-    fn evaluations(&self) -> u32 {
-        self.ledger.evaluations()
-    }
-
-    fn status(&self) -> Status {
-        self.status
-    }
-
-    fn bounds(&self) -> &Bounds<N> {
-        &self.bounds
-    }
+    ledger_accessors!();
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::optimizer::Best;
     use proptest::prelude::*;
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;

@@ -66,6 +66,7 @@
 
 use rand_core::RngCore;
 
+use super::ledger_accessors;
 use super::{Best, Bounds, Error, Ledger, Optimizer, Status, Vector, unit_f32};
 
 mod classifier;
@@ -699,25 +700,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
         Ok(())
     }
 
-    fn best(&self) -> Option<Best<N>> {
-        self.ledger.best()
-    }
-
-    fn pending(&self) -> Option<&Vector<N>> {
-        self.ledger.pending()
-    }
-
-    fn evaluations(&self) -> u32 {
-        self.ledger.evaluations()
-    }
-
-    fn status(&self) -> Status {
-        self.status
-    }
-
-    fn bounds(&self) -> &Bounds<N> {
-        &self.bounds
-    }
+    ledger_accessors!();
 }
 
 /// Batch-mode RACOS (the paper's Algorithm 1 as ZOOpt runs it): the model is fixed while a
@@ -834,25 +817,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
         Ok(())
     }
 
-    fn best(&self) -> Option<Best<N>> {
-        self.ledger.best()
-    }
-
-    fn pending(&self) -> Option<&Vector<N>> {
-        self.ledger.pending()
-    }
-
-    fn evaluations(&self) -> u32 {
-        self.ledger.evaluations()
-    }
-
-    fn status(&self) -> Status {
-        self.status
-    }
-
-    fn bounds(&self) -> &Bounds<N> {
-        &self.bounds
-    }
+    ledger_accessors!();
 }
 
 #[cfg(test)]
