@@ -10,9 +10,7 @@
 //! One tick observes the state the command is computed from (before the step): the survey
 //! reward sees the positions at t = 0, 0.1, …, 23.9 s.
 
-use ctrl_adapt::controller::{
-    Adapter, AdapterConfig, CorrectedPd, EpisodeReport, LinearPolicy, Pd, StateFeatures,
-};
+use ctrl_adapt::controller::{Adapter, AdapterConfig, EpisodeReport};
 use ctrl_adapt::optimizer::{
     Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Error,
     Optimizer, Vector,
@@ -22,29 +20,12 @@ use rand_core::RngCore;
 
 use crate::auv::{Auv, AuvConfig};
 
-/// Nominal PD gain on the position error (1/s), all axes.
-pub const KP: f32 = 0.3;
-/// Nominal PD gain on the velocity, all axes.
-pub const KD: f32 = 0.2;
-/// Saturation of each velocity-command component (m/s).
-pub const V_MAX: f32 = 0.5;
-/// Clamp of each component of the learned correction (m/s).
-pub const C_MAX: f32 = 0.5;
-/// Box of every entry of W: [−W_BOUND, W_BOUND]^18.
-pub const W_BOUND: f32 = 1.0;
-/// The survey radius D of the paper's reward (m).
-pub const RADIUS: f32 = 1.0;
-/// Parameters of the policy: W is 3 × 6.
-pub const P: usize = 18;
-/// Initial step of the coordinate search on every weight (a eighth of the box width).
-pub const LOCAL_STEP: f32 = 0.25;
-/// Tolerance of the coordinate search.
-pub const LOCAL_TOLERANCE: f32 = 1e-3;
+// The AUV configuration lives in one no_std place, shared with the PIL firmware.
+pub use pil_link::auv::{
+    AuvController, C_MAX, KD, KP, LOCAL_STEP, LOCAL_TOLERANCE, P, RADIUS, V_MAX, W_BOUND,
+};
 /// Points of the global phase's controlled random search (the paper's 100 initial samples).
 pub const CRS_POINTS: usize = 100;
-
-/// The vehicle's controller: PD on position producing velocity commands, corrected by W·φ.
-pub type AuvController = CorrectedPd<3, 6, 6, P, StateFeatures<6>>;
 
 /// The adapter of the AUV experiments over optimizer `O`.
 pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyReward, P, 6, 3>;
@@ -52,14 +33,10 @@ pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyReward, P, 6, 3>;
 /// The global phase's optimizer: CRS with the paper's 100 initial samples.
 pub type GlobalSearch = ControlledRandomSearch<P, CRS_POINTS>;
 
-/// kp = 0.3, kd = 0.2, |v_cmd| ≤ 0.5 m/s per component, correction within ±0.5 m/s.
+/// kp = 0.3, kd = 0.2, |v_cmd| ≤ 0.5 m/s per component, correction within ±0.5 m/s
+/// ([`pil_link::auv::controller`]).
 pub fn controller() -> AuvController {
-    let pd = Pd::<3>::try_new(Vector::repeat(KP), Vector::repeat(KD))
-        .and_then(|pd| pd.with_limit(Vector::repeat(V_MAX)))
-        .expect("valid PD gains");
-    let policy = LinearPolicy::try_new(StateFeatures::identity(), Vector::repeat(C_MAX))
-        .expect("valid envelope");
-    CorrectedPd::new(pd, policy)
+    pil_link::auv::controller().expect("valid AUV controller constants")
 }
 
 /// The box [−1, 1]^18 of W.
