@@ -56,6 +56,41 @@
 //! the body was lightened to 3.5 kg (4.2 kg in all). The values are in
 //! [`HopperConfig::SCARLETH`]; the nominal controller that hops at 0.6 m on them is
 //! [`NominalHopping::TUNED`].
+//!
+//! # Series elasticity (optional)
+//! ScarlETH is the *Series Compliant Articulated Robotic Leg*: hip and knee are driven through
+//! highly compliant series elastic actuators, "high spring compliance with low damping in
+//! combination with a cascaded, motor velocity based, control structure" for joint torque
+//! control (Hutter et al., *ScarlETH: design and control of a planar running robot*, IROS 2011;
+//! *High compliant series elastic actuation for the robotic leg ScarlETH*, CLAWAR 2011 — we
+//! could read only their abstracts, so every number below is **our assumption**). With
+//! [`HopperConfig::series_elasticity`] = `Some(`[`SeaConfig`]`)` each joint j gets a motor
+//! state (angle θ_j, rate θ̇_j, reflected to the joint side) and:
+//!
+//! ```text
+//! τ_s  = k (θ − q) + b (θ̇ − q̇)                         spring torque, the joint's torque
+//! B θ̈ = τ_m − τ_s                                      motor side (reflected inertia B)
+//! τ̂    = k (θ − q)                                      measured by the deflection sensor
+//! ω_ref = q̇ + 2π f_τ (τ_cmd − τ̂) / k                   outer torque loop → motor velocity
+//! τ_m  = sat(τ̂ + B · 2π f_v (ω_ref − θ̇), ±τ_m,max)     inner motor-velocity loop
+//! ```
+//!
+//! While the motor is not saturated and the inner loop is fast (f_v ≫ f_τ), the deflection
+//! obeys φ̇ ≈ 2π f_τ (τ_cmd / k − φ): the spring torque follows the command through a
+//! first-order lag of bandwidth f_τ, and faster than that (an impact) the joint feels the
+//! passive spring. The low-level loop is evaluated inside the ODE (continuous time: an
+//! idealised drive much faster than the 1 kHz command). The command τ_cmd is still the
+//! policy's torque held over the control period and saturated at
+//! [`HopperConfig::torque_limit`]; [`HopperStats::motor_limit_steps`] counts the steps in which
+//! a motor hit its limit, and [`HopperStats::absolute_work`] integrates |τ_s q̇|.
+//!
+//! [`HopperConfig::SCARLETH_SEA`] = the rigid leg with [`SeaConfig::SCARLETH`]: k = 100
+//! N·m/rad (30 N·m deflect the spring by 0.3 rad: "high compliance"), b = 0.1 N·m·s/rad
+//! ("low damping"), B = 0.01 kg·m² (the rigid leg's reflected actuator inertia, moved behind
+//! the spring; 0.001 kg·m² of output-side inertia stays on each joint), f_τ = 20 Hz, f_v =
+//! 100 Hz, τ_m,max = 30 N·m; 8 RK4 sub-steps (0.125 ms): with the nominal gait the apexes
+//! agree with 16 and 32 sub-steps to 1 mm. Without series elasticity the motor state is
+//! carried but never moves, and every result is bit-identical to the plant without it.
 
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -125,6 +160,10 @@ pub struct HopperConfig {
     pub substeps: u32,
     /// Episode duration (s).
     pub episode_duration: f64,
+    /// Series-elastic actuation of both joints ([`SeaConfig`]), or `None`: the commanded joint
+    /// torques act directly on the joints (the rigid, ideal torque source of
+    /// [`HopperConfig::SCARLETH`]).
+    pub series_elasticity: Option<SeaConfig>,
 }
 
 impl HopperConfig {
@@ -159,6 +198,17 @@ impl HopperConfig {
         control_period: 1e-3,
         substeps: 4,
         episode_duration: 12.0,
+        series_elasticity: None,
+    };
+
+    /// The same leg with series-elastic joints ([`SeaConfig::SCARLETH`], see the module docs):
+    /// the reflected actuator inertia moves to the motor side of the springs (a 0.001 kg·m²
+    /// output-side inertia stays on each joint), 8 RK4 sub-steps per control period.
+    pub const SCARLETH_SEA: Self = Self {
+        armature: [0.001, 0.001],
+        substeps: 8,
+        series_elasticity: Some(SeaConfig::SCARLETH),
+        ..Self::SCARLETH
     };
 
     /// The same leg on flat ground (height 0, never changed).
@@ -235,13 +285,95 @@ impl HopperConfig {
         if self.substeps == 0 {
             return Err("substeps");
         }
-        Ok(())
+        match self.series_elasticity {
+            Some(sea) => sea.validate(),
+            None => Ok(()),
+        }
     }
 }
 
 impl Default for HopperConfig {
     fn default() -> Self {
         Self::SCARLETH
+    }
+}
+
+/// Series-elastic actuation of a joint (both joints use the same): a motor behind a gear,
+/// seen from the joint as a rotor of reflected inertia `rotor_inertia` at angle θ, coupled to
+/// the joint angle q by a torsion spring; a cascaded, motor-velocity-based torque loop drives
+/// the motor (see the module docs for the equations and where the numbers come from).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeaConfig {
+    /// Spring stiffness k between motor and joint (N·m/rad, joint side).
+    pub stiffness: f64,
+    /// Spring damping b (N·m·s/rad).
+    pub damping: f64,
+    /// Reflected rotor and gear inertia B on the motor side of the spring (kg·m²).
+    pub rotor_inertia: f64,
+    /// Bandwidth f_τ of the torque loop (Hz): the spring torque follows the command as a
+    /// first-order lag of time constant 1/(2π f_τ) while the motor is not saturated.
+    pub torque_bandwidth: f64,
+    /// Bandwidth f_v of the inner motor-velocity loop (Hz).
+    pub velocity_bandwidth: f64,
+    /// Motor torque limit, reflected to the joint (N·m).
+    pub motor_torque_limit: f64,
+}
+
+impl SeaConfig {
+    /// Our ScarlETH-like actuator (assumptions, see the module docs): k = 100 N·m/rad,
+    /// b = 0.1 N·m·s/rad, B = 0.01 kg·m², f_τ = 20 Hz, f_v = 100 Hz, motor limit 30 N·m.
+    pub const SCARLETH: Self = Self {
+        stiffness: 100.0,
+        damping: 0.1,
+        rotor_inertia: 0.01,
+        torque_bandwidth: 20.0,
+        velocity_bandwidth: 100.0,
+        motor_torque_limit: 30.0,
+    };
+
+    /// `Ok` when every parameter is physically meaningful, else the name of the first bad one.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        let checks: [(bool, &'static str); 6] = [
+            (pos(self.stiffness), "series_elasticity.stiffness"),
+            (
+                self.damping.is_finite() && self.damping >= 0.0,
+                "series_elasticity.damping",
+            ),
+            (pos(self.rotor_inertia), "series_elasticity.rotor_inertia"),
+            (
+                pos(self.torque_bandwidth),
+                "series_elasticity.torque_bandwidth",
+            ),
+            (
+                pos(self.velocity_bandwidth),
+                "series_elasticity.velocity_bandwidth",
+            ),
+            (
+                pos(self.motor_torque_limit),
+                "series_elasticity.motor_torque_limit",
+            ),
+        ];
+        match checks.iter().find(|(ok, _)| !ok) {
+            Some((_, name)) => Err(name),
+            None => Ok(()),
+        }
+    }
+
+    /// [spring torque on the joint, motor torque] for joint angle/rate `q`, `qd`, motor
+    /// angle/rate `th`, `thd` and commanded joint torque `command`. The motor torque is
+    /// limited to ±`motor_torque_limit`; the second value says whether it was.
+    pub fn torques(&self, q: f64, qd: f64, th: f64, thd: f64, command: f64) -> ([f64; 2], bool) {
+        let deflection = th - q;
+        let spring = self.stiffness * deflection + self.damping * (thd - qd);
+        // The deflection sensor measures k·φ (no damping term).
+        let measured = self.stiffness * deflection;
+        let w_t = core::f64::consts::TAU * self.torque_bandwidth;
+        let w_v = core::f64::consts::TAU * self.velocity_bandwidth;
+        let velocity_ref = qd + w_t * (command - measured) / self.stiffness;
+        let motor = measured + self.rotor_inertia * w_v * (velocity_ref - thd);
+        let lim = self.motor_torque_limit;
+        ([spring, motor.clamp(-lim, lim)], motor.abs() > lim)
     }
 }
 
@@ -282,6 +414,9 @@ pub struct HopperStats {
     pub hops: u32,
     /// Lowest body height above the ground seen (m).
     pub min_clearance: f64,
+    /// Control steps in which a series-elastic motor hit its torque limit (0 without series
+    /// elasticity).
+    pub motor_limit_steps: u32,
 }
 
 /// The hopping-leg plant (see the [module docs](self)).
@@ -290,8 +425,9 @@ pub struct Hopper {
     config: HopperConfig,
     seed: u64,
     rng: Xoshiro256PlusPlus,
-    /// [y, q_h, q_k, ẏ, q̇_h, q̇_k]
-    x: [f64; 6],
+    /// [y, q_h, q_k, ẏ, q̇_h, q̇_k, θ_h, θ_k, θ̇_h, θ̇_k] (θ: motor angles, used only with
+    /// series elasticity; they start at the joint angles and stay there otherwise).
+    x: [f64; 10],
     /// Where the foot stuck at touchdown (x), moved when it slips; `None` in flight.
     anchor: Option<f64>,
     time: f64,
@@ -315,7 +451,7 @@ impl Hopper {
             config,
             seed,
             rng: Xoshiro256PlusPlus::seed_from_u64(seed),
-            x: [0.0; 6],
+            x: [0.0; 10],
             anchor: None,
             time: 0.0,
             steps: 0,
@@ -337,11 +473,16 @@ impl Hopper {
     pub fn reset(&mut self) {
         let c = self.config;
         let knee = c.initial_knee;
+        let hip = c.hip_angle_for_foot_under_hip(knee);
         self.x = [
             c.initial_height,
-            c.hip_angle_for_foot_under_hip(knee),
+            hip,
             knee,
             0.0,
+            0.0,
+            0.0,
+            hip,
+            knee,
             0.0,
             0.0,
         ];
@@ -395,9 +536,35 @@ impl Hopper {
         [self.foot_x(), self.foot_height()]
     }
 
-    /// The joint torques applied during the last step, after saturation (N·m).
+    /// The joint torques applied during the last step, after saturation (N·m). With series
+    /// elasticity, the saturated *command* to the torque loops; what the springs apply is
+    /// [`Hopper::joint_torques`].
     pub fn applied_torques(&self) -> [f64; 2] {
         self.applied
+    }
+
+    /// The torques acting on the joints now (N·m): the last [`Hopper::applied_torques`]
+    /// without series elasticity, the spring torques k φ + b φ̇ with it.
+    pub fn joint_torques(&self) -> [f64; 2] {
+        self.actuation(&self.x, self.applied).0
+    }
+
+    /// [hip, knee] motor angles θ (rad, reflected to the joint; the joint angles without
+    /// series elasticity).
+    pub fn motor_angles(&self) -> [f64; 2] {
+        match self.config.series_elasticity {
+            Some(_) => [self.x[6], self.x[7]],
+            None => [self.x[1], self.x[2]],
+        }
+    }
+
+    /// [hip, knee] motor rates θ̇ (rad/s, reflected to the joint; the joint rates without
+    /// series elasticity).
+    pub fn motor_velocities(&self) -> [f64; 2] {
+        match self.config.series_elasticity {
+            Some(_) => [self.x[8], self.x[9]],
+            None => [self.x[4], self.x[5]],
+        }
     }
 
     /// The control period (s).
@@ -464,19 +631,25 @@ impl Hopper {
         }
         self.applied = tau;
         let rising = self.x[3] > 0.0;
+        let mut motor_saturated = false;
         for _ in 0..c.substeps {
             let x0 = self.x;
             let k1 = self.derivative(&x0, tau);
             let k2 = self.derivative(&axpy(&x0, 0.5 * h, &k1), tau);
             let k3 = self.derivative(&axpy(&x0, 0.5 * h, &k2), tau);
             let k4 = self.derivative(&axpy(&x0, h, &k3), tau);
-            for i in 0..6 {
+            for i in 0..10 {
                 self.x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             }
             self.update_anchor();
-            for (i, t) in tau.iter().enumerate() {
+            let (joint, saturated) = self.actuation(&self.x, tau);
+            motor_saturated |= saturated;
+            for (i, t) in joint.iter().enumerate() {
                 self.stats.absolute_work += h * (t * self.x[4 + i]).abs();
             }
+        }
+        if motor_saturated {
+            self.stats.motor_limit_steps += 1;
         }
         for t in tau {
             self.stats.torque_squared += t * t * c.control_period;
@@ -550,9 +723,39 @@ impl Hopper {
         }
     }
 
-    /// ẋ for state x under joint torques tau.
-    fn derivative(&self, x: &[f64; 6], tau: [f64; 2]) -> [f64; 6] {
+    /// The joint torques in state `x` under the commanded torques `tau`: `tau` itself without
+    /// series elasticity, else the spring torques; and whether a motor is at its limit.
+    fn actuation(&self, x: &[f64; 10], tau: [f64; 2]) -> ([f64; 2], bool) {
+        match self.config.series_elasticity {
+            None => (tau, false),
+            Some(sea) => {
+                let mut saturated = false;
+                let joint = core::array::from_fn(|j| {
+                    let (t, sat) = sea.torques(x[1 + j], x[4 + j], x[6 + j], x[8 + j], tau[j]);
+                    saturated |= sat;
+                    t[0]
+                });
+                (joint, saturated)
+            }
+        }
+    }
+
+    /// ẋ for state x under commanded joint torques tau.
+    fn derivative(&self, x: &[f64; 10], tau: [f64; 2]) -> [f64; 10] {
         let c = &self.config;
+        // Joint torques and motor accelerations B θ̈ = τ_m − τ_s (zero without elasticity).
+        let (tau, motor_acc) = match c.series_elasticity {
+            None => (tau, [0.0; 2]),
+            Some(sea) => {
+                let mut acc = [0.0; 2];
+                let joint = core::array::from_fn(|j| {
+                    let (t, _) = sea.torques(x[1 + j], x[4 + j], x[6 + j], x[8 + j], tau[j]);
+                    acc[j] = (t[1] - t[0]) / sea.rotor_inertia;
+                    t[0]
+                });
+                (joint, acc)
+            }
+        };
         let (q1, q2) = (x[1], x[2]);
         let (yd, q1d, q2d) = (x[3], x[4], x[5]);
         let a = q1 + q2;
@@ -619,7 +822,18 @@ impl Hopper {
         rhs[1] += stop(q1, q1d, c.hip_range, c.limit_stiffness, c.limit_damping);
         rhs[2] += stop(q2, q2d, c.knee_range, c.limit_stiffness, c.limit_damping);
         let qdd = solve3(&m, &rhs);
-        [yd, q1d, q2d, qdd[0], qdd[1], qdd[2]]
+        [
+            yd,
+            q1d,
+            q2d,
+            qdd[0],
+            qdd[1],
+            qdd[2],
+            x[8],
+            x[9],
+            motor_acc[0],
+            motor_acc[1],
+        ]
     }
 }
 
@@ -636,7 +850,7 @@ fn stop(q: f64, qd: f64, range: [f64; 2], k: f64, c: f64) -> f64 {
 }
 
 /// x + a·y.
-fn axpy(x: &[f64; 6], a: f64, y: &[f64; 6]) -> [f64; 6] {
+fn axpy(x: &[f64; 10], a: f64, y: &[f64; 10]) -> [f64; 10] {
     core::array::from_fn(|i| x[i] + a * y[i])
 }
 
@@ -702,6 +916,18 @@ impl NominalHopping {
         knee_amplitude: 0.63,
         phase: 0.72,
         kp: 30.0,
+        kd: 0.6,
+    };
+
+    /// The parameters tuned for [`HopperConfig::SCARLETH_SEA`] on flat ground by the procedure
+    /// of `tests/hopper_tuning.rs` (motor-limit steps counted as violations too), rounded to
+    /// two decimals: `cargo run --release -p host-tests --example hopper_sea -- --tune`.
+    pub const SEA_TUNED: Self = Self {
+        period: 0.67,
+        knee_mean: -0.92,
+        knee_amplitude: 0.50,
+        phase: 0.70,
+        kp: 18.0,
         kd: 0.6,
     };
 

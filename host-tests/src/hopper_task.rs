@@ -61,7 +61,12 @@ pub type HopperAdapter<O> = Adapter<O, LegController, ApexHeightCost, P, 4, 2>;
 
 /// The kernels over the nominal period, with the learned period kept within ±0.1 s.
 pub fn kernels() -> PeriodicRbf<K> {
-    let t0 = NominalHopping::TUNED.period as f32;
+    kernels_for(&NominalHopping::TUNED)
+}
+
+/// [`kernels`] over the period of another nominal gait (`nominal.period` ± 0.1 s).
+pub fn kernels_for(nominal: &NominalHopping) -> PeriodicRbf<K> {
+    let t0 = nominal.period as f32;
     PeriodicRbf::try_new(t0, t0 - PERIOD_RANGE, t0 + PERIOD_RANGE).expect("valid period")
 }
 
@@ -104,8 +109,14 @@ pub fn fit_error(map: &PeriodicRbf<K>, nominal: &NominalHopping, weights: &Vecto
 /// The leg controller: the nominal of [`NominalHopping::TUNED`] on the kernels, hip gain
 /// −1/2, offset 0, torques within ±30 N·m, corrections within [`ENVELOPE`].
 pub fn controller() -> LegController {
-    let nominal = NominalHopping::TUNED;
-    let map = kernels();
+    controller_for(&NominalHopping::TUNED)
+}
+
+/// [`controller`] around another nominal gait (its period, knee cosine and gains; the same
+/// hip gain, torque limit and envelope): for a leg other than [`HopperConfig::SCARLETH`].
+pub fn controller_for(nominal: &NominalHopping) -> LegController {
+    let nominal = *nominal;
+    let map = kernels_for(&nominal);
     let weights = nominal_knee_weights(&map, &nominal);
     let pd = Pd::<2>::try_new(
         Vector::repeat(nominal.kp as f32),
@@ -187,9 +198,24 @@ pub fn adapter<O: Optimizer<P>>(
     learning_episodes: u32,
     initial: Vector<P>,
 ) -> Result<HopperAdapter<O>, Error> {
+    adapter_for(
+        optimizer,
+        learning_episodes,
+        initial,
+        &NominalHopping::TUNED,
+    )
+}
+
+/// [`adapter`] over [`controller_for`]`(nominal)`.
+pub fn adapter_for<O: Optimizer<P>>(
+    optimizer: O,
+    learning_episodes: u32,
+    initial: Vector<P>,
+    nominal: &NominalHopping,
+) -> Result<HopperAdapter<O>, Error> {
     Adapter::try_new(
         optimizer,
-        controller(),
+        controller_for(nominal),
         ApexHeightCost::try_new(apex_config())?,
         adapter_config(learning_episodes),
         initial,
@@ -199,14 +225,21 @@ pub fn adapter<O: Optimizer<P>>(
 /// The plant of the experiments: the ScarlETH-like leg over the random 0 / 1.5 / 5.5 cm
 /// blocks (the seed draws the block sequence; each episode continues the stream), or flat.
 pub fn plant(blocks: bool, seed: u64) -> Hopper {
-    let config = if blocks {
-        HopperConfig::SCARLETH
+    plant_for(HopperConfig::SCARLETH, blocks, seed)
+}
+
+/// [`plant`] for another leg `config` (its own blocks when `blocks`, else flat ground), with
+/// the experiments' episode length.
+pub fn plant_for(config: HopperConfig, blocks: bool, seed: u64) -> Hopper {
+    let ground_heights = if blocks {
+        config.ground_heights
     } else {
-        HopperConfig::flat()
+        &[0.0]
     };
     Hopper::new(
         HopperConfig {
             episode_duration: EPISODE,
+            ground_heights,
             ..config
         },
         seed,
@@ -388,7 +421,18 @@ pub fn evaluate<G: RngCore>(
     rng: &mut G,
     record: bool,
 ) -> Result<HopEpisode, Error> {
-    let mut deployed = adapter(coordinate_search(theta, 1)?, 1, theta)?;
+    evaluate_for(theta, hopper, rng, record, &NominalHopping::TUNED)
+}
+
+/// [`evaluate`] with the controller around another nominal gait ([`controller_for`]).
+pub fn evaluate_for<G: RngCore>(
+    theta: Vector<P>,
+    hopper: &mut Hopper,
+    rng: &mut G,
+    record: bool,
+    nominal: &NominalHopping,
+) -> Result<HopEpisode, Error> {
+    let mut deployed = adapter_for(coordinate_search(theta, 1)?, 1, theta, nominal)?;
     deployed.set_mode(ctrl_adapt::controller::Mode::Deploy)?;
     run_episode(&mut deployed, hopper, rng, record)
 }

@@ -188,3 +188,71 @@ fn ground_changes_at_apexes_from_the_set_and_is_seeded() {
     assert_ne!(a, sequence(HopperConfig::default(), 12));
     assert_eq!(sequence(HopperConfig::flat(), 11), vec![0.0]);
 }
+
+/// Checks, on the series-elastic leg (`HopperConfig::SCARLETH_SEA`): standing still under the
+/// same joint PD as above, it comes to rest with the foot sunk by total weight / ground
+/// stiffness (within 2 %), and the torque loops track the command at rest: each spring torque
+/// equals the commanded joint torque within 1e-3 N·m, with the spring deflected by
+/// torque / k (so the torque is really carried by the springs, not a direct path).
+#[test]
+fn series_elastic_leg_stands_on_its_springs() {
+    let base = HopperConfig {
+        ground_heights: &[0.0],
+        ..HopperConfig::SCARLETH_SEA
+    };
+    let sea = base.series_elasticity.unwrap();
+    let knee = -1.0;
+    let config = HopperConfig {
+        initial_knee: knee,
+        initial_height: base.leg_length(knee),
+        ..base
+    };
+    let mut hopper = Hopper::new(config, 1);
+    let refs = [config.hip_angle_for_foot_under_hip(knee), knee];
+    let mut tau = [0.0; 2];
+    for _ in 0..3000 {
+        let s = hopper.state();
+        tau = core::array::from_fn(|j| {
+            30.0 * (refs[j] - s.joint_angles[j]) - 1.0 * s.joint_velocities[j]
+        });
+        hopper.step(tau);
+    }
+    let s = hopper.state();
+    assert!(s.contact && s.body_velocity.abs() < 1e-4, "{s:?}");
+    let sink = -hopper.foot_position()[1];
+    let expected = config.total_mass() * config.gravity / config.ground_stiffness;
+    assert!(
+        (sink - expected).abs() < 0.02 * expected,
+        "sink {sink}, expected {expected}"
+    );
+    let spring = hopper.joint_torques();
+    let motor = hopper.motor_angles();
+    for j in 0..2 {
+        assert!((spring[j] - tau[j]).abs() < 1e-3, "{spring:?} vs {tau:?}");
+        let deflection = motor[j] - s.joint_angles[j];
+        assert!((sea.stiffness * deflection - tau[j]).abs() < 1e-3);
+    }
+    assert!(tau[1].abs() > 1.0, "the knee carries load: {tau:?}");
+}
+
+/// Checks: `NominalHopping::SEA_TUNED` hops on the series-elastic leg over flat ground, every
+/// apex after the first three within 1.5 cm of 0.6 m (measured 0.592–0.594 m), with no
+/// commanded torque beyond its limit.
+#[test]
+fn series_elastic_leg_hops_with_its_nominal_gait() {
+    let config = HopperConfig {
+        ground_heights: &[0.0],
+        episode_duration: 6.0,
+        ..HopperConfig::SCARLETH_SEA
+    };
+    let nominal = NominalHopping::SEA_TUNED;
+    let mut hopper = Hopper::new(config, 1);
+    for _ in 0..hopper.steps_per_episode() {
+        hopper.step(nominal.torques(&config, &hopper.state()));
+    }
+    assert!(!hopper.collapsed());
+    let a = &hopper.apex_heights()[TRANSIENT_HOPS..];
+    assert!(a.len() >= 5, "{a:?}");
+    assert!(a.iter().all(|h| (h - 0.6).abs() < 0.015), "{a:?}");
+    assert_eq!(hopper.stats().torque_limit_steps, 0);
+}
