@@ -276,14 +276,16 @@ struct Sample<const N: usize> {
 ///
 /// let bounds = Bounds::<4>::uniform(-1.0, 1.0)?;
 /// let config = CemConfig {
-///     weighting: Weighting::CmaEs,
+///     weighting: Weighting::PiBb { h: 10.0 },
 ///     initial_variance: 0.1,
-///     exploration_floor: 1e-6,
 ///     max_evaluations: 600,
 ///     ..CemConfig::DEFAULT
 /// };
-/// // 10 samples per update, the best 5 kept and weighted by rank.
-/// let mut cem = DiagonalCem::<4, 10, 5>::try_new(bounds, [0.8; 4].into(), config)?;
+/// // 10 samples per update, all kept and weighted by PI-BB. The default exploration floor
+/// // (1e-4 added to every variance after each update) keeps this small batch exploring:
+/// // with a floor of 1e-6 the same run stops short on 7 of 30 seeds (and with CMA-ES
+/// // weights on the best 5, on 21 of 30).
+/// let mut cem = DiagonalCem::<4, 10>::try_new(bounds, [0.8; 4].into(), config)?;
 /// let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(3);
 /// while cem.status() == Status::Running {
 ///     let theta = cem.ask(&mut rng)?;
