@@ -166,7 +166,7 @@ impl Row {
                     format!("{:.1}", median(stable))
                 };
                 if unstable > 0 {
-                    format!("{m} ({unstable} not hopping)")
+                    format!("{m} ({unstable} off the gait)")
                 } else {
                     m
                 }
