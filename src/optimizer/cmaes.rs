@@ -79,8 +79,10 @@
 //!   radius 7.99.
 //!
 //! # Sizes
-//! About 4·(2N² + (L + 8)·N + L) bytes: C and B (N × N each), the μ ≤ L best steps of a
-//! generation, the paths, mean and scales: 9.4 KB for `Cmaes<31, 14>`. N ≤ 127: nalgebra's
+//! About 4·(2N² + (L + 12)·N) bytes: C and B (N × N each), room for the μ ≤ L best draws
+//! of a generation, the paths, mean, scales and box: `size_of` is 11 024 B for
+//! `Cmaes<31, 14>` and 4 312 B for `Cmaes<18, 10>` (`cargo bench -p host-tests --bench
+//! cmaes`). N ≤ 127: nalgebra's
 //! decomposition needs `Const<N>: DimSub<U1>`, which it implements up to 127 (the
 //! [`SymmetricEigenSize`] bound on the impls, met by every such N without naming it).
 
