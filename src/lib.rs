@@ -10,9 +10,9 @@ pub mod optimizer;
 pub mod reward;
 
 pub use optimizer::{
-    Best, Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
-    DiagonalCem, Error, Optimizer, Racos, RacosConfig, Replacement, Sracos, SracosConfig, Status,
-    Suppression, TwoPhase, Vector, Weighting,
+    Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
+    CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos, RacosConfig, Replacement,
+    Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
 };
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
@@ -50,6 +50,8 @@ const _: () = {
     assert_format::<Weighting>();
     assert_format::<CemConfig>();
     assert_format::<DiagonalCem<3, 4, 2>>();
+    assert_format::<CmaesConfig>();
+    assert_format::<Cmaes<3, 7>>();
     assert_format::<Replacement>();
     assert_format::<Suppression>();
     assert_format::<SracosConfig>();

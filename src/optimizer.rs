@@ -39,12 +39,14 @@ use nalgebra::SVector;
 use rand_core::RngCore;
 
 pub mod cem;
+pub mod cmaes;
 pub mod coordinate;
 pub mod crs;
 pub mod sracos;
 pub mod two_phase;
 
 pub use cem::{CemConfig, DiagonalCem, Weighting};
+pub use cmaes::{Cmaes, CmaesConfig};
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
 pub use crs::{ControlledRandomSearch, CrsConfig};
 pub use sracos::{Racos, RacosConfig, Replacement, Sracos, SracosConfig, Suppression};

@@ -1,0 +1,226 @@
+//! The hopping leg learned with the **library's** [`Cmaes`] (f32, `Cmaes<31, 14>`), to check
+//! that it reproduces the host-only f64 diagnostic `hopper_cmaes.rs` (docs/cmaes.md).
+//!
+//! ```text
+//! cargo run --release -p host-tests --example hopper_cmaes_lib -- [RUN ...]
+//! ```
+//!
+//! Each RUN is `start:sigma0:budget:cost:seed`, e.g. `zero:0.15:6000:plain:1` (the default):
+//! * `start`: `zero` (θ = 0) or `env` (the θ in `CMAES_THETA`, comma-separated, as printed);
+//! * `sigma0`: initial step size relative to the box's half-widths;
+//! * `budget`: episodes;
+//! * `cost`: `plain` — the episodes run through the library's [`Adapter`]
+//!   (`hopper_task::adapter`, `run_episode` on the training course 1001; the adapter asks
+//!   the optimizer and tells it the `ApexHeightCost`, or the failure cost on a collapse);
+//!   `shaped` / `shaped3` — the optimizer driven directly (ask, `evaluate`, tell) with the
+//!   shaped cost of the diagnostic (apex term without the first 3 apexes + 10 · spread², on
+//!   course 1001, or averaged over 1001–1003);
+//! * `seed`: the RNG seed of the optimizer's draws.
+//!
+//! Box penalty 0.01 (as the diagnostic), tolerance 1e-6, a decomposition every generation.
+//! The rows printed are those of docs/cmaes.md's table: best objective, the plain cost on
+//! course 1001 split into apex term + rest, training spread, unseen median / max (courses
+//! 10 001–10 005), stability; plus σ and the axis ratio.
+//!
+//! [`Adapter`]: ctrl_adapt::controller::Adapter
+
+use std::time::Instant;
+
+use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
+use host_tests::hopper_task::{
+    self, HopEpisode, P, bounds, evaluate, plant, run_episode, training_course,
+};
+use rand_core::SeedableRng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// λ = 4 + ⌊3 ln 31⌋.
+const LAMBDA: usize = 14;
+
+/// Episodes at which the best-so-far θ is reported.
+const CHECKPOINTS: &[u32] = &[1000, 2000, 4000, 6000, 8000, 10_000, 12_000];
+
+/// Unseen courses of `tests/hopper_experiments.rs`.
+const UNSEEN: std::ops::RangeInclusive<u64> = 10_001..=10_005;
+
+#[derive(Clone, Copy, PartialEq)]
+enum Cost {
+    Plain,
+    Shaped,
+    Shaped3,
+}
+
+/// The diagnostic's shaped cost: the apex term without the first 3 apexes + 10 · spread².
+fn shaped(e: &HopEpisode) -> f64 {
+    let told = f64::from(e.report.cost);
+    if e.collapsed {
+        return told;
+    }
+    let mean_sq =
+        |a: &[f64]| a.iter().map(|h| (h - 0.6).powi(2)).sum::<f64>() / a.len().max(1) as f64;
+    let rest = told - mean_sq(&e.apexes);
+    mean_sq(e.apexes.get(3..).unwrap_or(&[])) + rest + 10.0 * e.apex_spread().powi(2)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Spreads (cm) and stability of `theta` on `seeds`.
+fn spreads(theta: Vector<P>, seeds: impl Iterator<Item = u64>) -> (Vec<f64>, bool) {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2);
+    let e: Vec<HopEpisode> = seeds
+        .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false).expect("episode"))
+        .collect();
+    (
+        e.iter().map(|e| e.apex_spread() * 100.0).collect(),
+        e.iter().all(HopEpisode::hops_stably),
+    )
+}
+
+/// One row of the table (as the diagnostic's).
+fn row(label: &str, episodes: u32, cost: f32, theta: Vector<P>, extra: &str) {
+    let (train, stable_t) = spreads(theta, 1001..=1001);
+    let (unseen, stable_u) = spreads(theta, UNSEEN);
+    let max = unseen.iter().copied().fold(0.0, f64::max);
+    let e = evaluate(
+        theta,
+        &mut training_course(),
+        &mut Xoshiro256PlusPlus::seed_from_u64(2),
+        false,
+    )
+    .expect("episode");
+    let apex =
+        e.apexes.iter().map(|h| (h - 0.6).powi(2)).sum::<f64>() / e.apexes.len().max(1) as f64;
+    let rest = f64::from(e.report.cost) - apex;
+    println!(
+        "| {label} | {episodes} | {cost:.3e} | {apex:.2e} + {rest:.2e} | {:.2} | {:.2} | \
+         {max:.2} | {} | {extra} |",
+        train[0],
+        median(unseen),
+        if stable_t && stable_u { "yes" } else { "NO" }
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let runs = if args.is_empty() {
+        vec!["zero:0.15:6000:plain:1".to_string()]
+    } else {
+        args
+    };
+    println!(
+        "| run | episodes | best objective | plain cost on 1001: apex + rest | training spread \
+         (cm) | unseen median | unseen max | stable | notes |"
+    );
+    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |");
+    for run in &runs {
+        let f: Vec<&str> = run.split(':').collect();
+        assert_eq!(
+            f.len(),
+            5,
+            "RUN is start:sigma0:budget:cost:seed, got {run}"
+        );
+        let sigma0: f32 = f[1].parse().expect("sigma0");
+        let budget: u32 = f[2].parse().expect("budget");
+        let cost = match f[3] {
+            "plain" => Cost::Plain,
+            "shaped" => Cost::Shaped,
+            "shaped3" => Cost::Shaped3,
+            c => panic!("cost {c}"),
+        };
+        let seed: u64 = f[4].parse().expect("seed");
+        let start = match f[0] {
+            "zero" => Vector::<P>::zeros(),
+            "env" => {
+                let text = std::env::var("CMAES_THETA").expect("CMAES_THETA");
+                let theta: Vec<f32> = text
+                    .trim_matches(|c| c == '[' || c == ']' || char::is_whitespace(c))
+                    .split(',')
+                    .map(|v| v.trim().parse().expect("θ component"))
+                    .collect();
+                assert_eq!(theta.len(), P, "CMAES_THETA needs {P} values");
+                let theta = Vector::<P>::from_column_slice(&theta);
+                row("given θ (start)", 0, f32::NAN, theta, "");
+                theta
+            }
+            s => panic!("start {s}"),
+        };
+        let label = format!("library {} σ₀ {sigma0} {} seed {seed}", f[0], f[3]);
+        let courses: &[u64] = if cost == Cost::Shaped3 {
+            &[1001, 1002, 1003]
+        } else {
+            &[1001]
+        };
+        let evaluations = budget.div_ceil(courses.len() as u32);
+        let config = CmaesConfig {
+            initial_sigma: sigma0,
+            penalty: 0.01,
+            tolerance: 1e-6,
+            max_evaluations: evaluations,
+            ..CmaesConfig::DEFAULT
+        };
+        let cma = Cmaes::<P, LAMBDA>::try_new(bounds(), start, config).expect("valid config");
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        let t = Instant::now();
+        let report = |cma: &Cmaes<P, LAMBDA>, episodes: u32| {
+            let best = cma.best().expect("told");
+            row(
+                &label,
+                episodes,
+                best.cost,
+                best.theta,
+                &format!(
+                    "σ {:.2e}, axis ratio {:.0}, {:.0} s",
+                    cma.sigma(),
+                    cma.axis_ratio(),
+                    t.elapsed().as_secs_f64()
+                ),
+            );
+        };
+        let checkpoint = |cma: &Cmaes<P, LAMBDA>| {
+            let episodes = cma.evaluations() * courses.len() as u32;
+            if CHECKPOINTS.contains(&episodes) && episodes < budget {
+                report(cma, episodes);
+            }
+        };
+        let cma = if cost == Cost::Plain {
+            let mut adapter = hopper_task::adapter(cma, budget, start).expect("adapter");
+            for _ in 0..budget {
+                run_episode(&mut adapter, &mut training_course(), &mut rng, false)
+                    .expect("episode");
+                checkpoint(adapter.optimizer());
+                if adapter.optimizer().status() != Status::Running {
+                    break;
+                }
+            }
+            adapter.optimizer().clone()
+        } else {
+            let mut cma = cma;
+            let mut eval_rng = Xoshiro256PlusPlus::seed_from_u64(3);
+            while let Ok(theta) = cma.ask(&mut rng) {
+                let c = courses
+                    .iter()
+                    .map(|&s| {
+                        shaped(
+                            &evaluate(theta, &mut plant(true, s), &mut eval_rng, false)
+                                .expect("episode"),
+                        )
+                    })
+                    .sum::<f64>()
+                    / courses.len() as f64;
+                cma.tell(c as f32).expect("finite cost");
+                checkpoint(&cma);
+            }
+            cma
+        };
+        report(&cma, cma.evaluations() * courses.len() as u32);
+        println!(
+            "  {label}: {:?} after {} generations, {} recoveries",
+            cma.status(),
+            cma.generations(),
+            cma.recoveries()
+        );
+        println!("  θ = {:?}", cma.best().expect("told").theta.as_slice());
+    }
+}
