@@ -1,5 +1,5 @@
 //! The AUV survey task run through the library's own controller stack: [`Adapter`] over a
-//! [`CorrectedPd`] (the vehicle's position PD plus the 18-parameter linear correction of
+//! [`CorrectedPd`](ctrl_adapt::controller::CorrectedPd) (the vehicle's position PD plus the 18-parameter linear correction of
 //! Leonetti et al. 2012, section 5) scored by [`SurveyReward`], driving the f64 [`Auv`] plant.
 //!
 //! The controller boundary is `f32`, as on the target: every tick the plant's measured state
