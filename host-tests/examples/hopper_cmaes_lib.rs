@@ -14,7 +14,11 @@
 //!   the optimizer and tells it the `ApexHeightCost`, or the failure cost on a collapse);
 //!   `shaped` / `shaped3` — the optimizer driven directly (ask, `evaluate`, tell) with the
 //!   shaped cost of the diagnostic (apex term without the first 3 apexes + 10 · spread², on
-//!   course 1001, or averaged over 1001–1003);
+//!   course 1001, or averaged over 1001–1003); `generation` / `fresh` — plain cost through
+//!   the adapter, but on a new course every generation (the λ candidates of a generation
+//!   share it: common random numbers within the ranking) or every episode (seeds
+//!   100 000 + generation or + episode); the rows then report the search's mean, not its
+//!   best told θ (a lucky draw on an easy course);
 //! * `seed`: the RNG seed of the optimizer's draws.
 //!
 //! Box penalty 0.01 (as the diagnostic), tolerance 1e-6, a decomposition every generation.
@@ -47,6 +51,11 @@ enum Cost {
     Plain,
     Shaped,
     Shaped3,
+    /// Plain cost, a new course every generation (all λ candidates of a generation on the
+    /// same one): seed 100 000 + generation.
+    Generation,
+    /// Plain cost, a new course every episode: seed 100 000 + episode.
+    Fresh,
 }
 
 /// The diagnostic's shaped cost: the apex term without the first 3 apexes + 10 · spread².
@@ -127,6 +136,8 @@ fn main() {
             "plain" => Cost::Plain,
             "shaped" => Cost::Shaped,
             "shaped3" => Cost::Shaped3,
+            "generation" => Cost::Generation,
+            "fresh" => Cost::Fresh,
             c => panic!("cost {c}"),
         };
         let seed: u64 = f[4].parse().expect("seed");
@@ -165,11 +176,17 @@ fn main() {
         let t = Instant::now();
         let report = |cma: &Cmaes<P, LAMBDA>, episodes: u32| {
             let best = cma.best().expect("told");
+            // On changing courses the best told cost is a lucky draw: report the mean.
+            let (cost, theta) = if matches!(cost, Cost::Generation | Cost::Fresh) {
+                (f32::NAN, cma.mean())
+            } else {
+                (best.cost, best.theta)
+            };
             row(
                 &label,
                 episodes,
-                best.cost,
-                best.theta,
+                cost,
+                theta,
                 &format!(
                     "σ {:.2e}, axis ratio {:.0}, {:.0} s",
                     cma.sigma(),
@@ -184,11 +201,15 @@ fn main() {
                 report(cma, episodes);
             }
         };
-        let cma = if cost == Cost::Plain {
+        let cma = if matches!(cost, Cost::Plain | Cost::Generation | Cost::Fresh) {
             let mut adapter = hopper_task::adapter(cma, budget, start).expect("adapter");
-            for _ in 0..budget {
-                run_episode(&mut adapter, &mut training_course(), &mut rng, false)
-                    .expect("episode");
+            for k in 0..u64::from(budget) {
+                let mut course = match cost {
+                    Cost::Generation => plant(true, 100_000 + k / LAMBDA as u64),
+                    Cost::Fresh => plant(true, 100_000 + k),
+                    _ => training_course(),
+                };
+                run_episode(&mut adapter, &mut course, &mut rng, false).expect("episode");
                 checkpoint(adapter.optimizer());
                 if adapter.optimizer().status() != Status::Running {
                     break;
@@ -222,5 +243,6 @@ fn main() {
             cma.recoveries()
         );
         println!("  θ = {:?}", cma.best().expect("told").theta.as_slice());
+        println!("  mean = {:?}", cma.mean().as_slice());
     }
 }
