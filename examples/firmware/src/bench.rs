@@ -69,5 +69,9 @@ pub mod sections {
         crs_ask = 9;
         /// `ControlledRandomSearch::<18, 100>::tell`.
         crs_tell = 10;
+        /// `Cmaes::<18, 12>::ask`.
+        cmaes_ask = 11;
+        /// `Cmaes::<18, 12>::tell`.
+        cmaes_tell = 12;
     }
 }

@@ -3,7 +3,8 @@
 //! instruction trace and counts the instructions of each call. Measured: one `ask` and one
 //! `tell` of each optimizer over the AUV box of [`pil_link::auv`] (N = 18), 400 evaluations
 //! each, on the 18-D ill-conditioned ellipsoid (its minimiser is inside the box): the
-//! coordinate search, SRACOS, the diagonal CEM and the controlled random search (100 points).
+//! coordinate search, SRACOS, the diagonal CEM, the controlled random search (100 points) and
+//! the full-covariance CMA-ES (λ = 12, the default population for 18 parameters).
 //! The control tick is measured by the `tick` firmware.
 //!
 //! It also prints the `size_of` of each optimizer and of the AUV adapter around it.
@@ -12,7 +13,7 @@
 
 use core::mem::size_of;
 
-use ctrl_adapt::{CoordinateSearch, Error, Optimizer, Sracos, Status};
+use ctrl_adapt::{Cmaes, CmaesConfig, CoordinateSearch, Error, Optimizer, Sracos, Status};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, functions, stack};
 use pil_link::auv::{self, AuvAdapter, AuvCem, AuvCrs};
@@ -20,6 +21,8 @@ use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
 const N: usize = auv::P;
+/// The CMA-ES measured: the tutorial's default population 4 + ⌊3 ln 18⌋ = 12.
+type AuvCmaes = Cmaes<N, 12>;
 /// Measured evaluations per optimizer: enough to pass through every phase of their state
 /// machines (the coordinate search's probes, expansions, contractions and several sweeps;
 /// SRACOS's 12 initial samples and the model updates; 40 CEM updates; CRS's 100 initial
@@ -67,6 +70,7 @@ fn main() -> ! {
     log_size!("Sracos<18>", Sracos<N>);
     log_size!("DiagonalCem<18, 10, 5>", AuvCem);
     log_size!("ControlledRandomSearch<18, 100>", AuvCrs);
+    log_size!("Cmaes<18, 12>", AuvCmaes);
     log_size!(
         "Adapter with CoordinateSearch<18>",
         AuvAdapter<CoordinateSearch<N>>
@@ -77,13 +81,15 @@ fn main() -> ! {
         "Adapter with ControlledRandomSearch<18, 100>",
         AuvAdapter<AuvCrs>
     );
+    log_size!("Adapter with Cmaes<18, 12>", AuvAdapter<AuvCmaes>);
     for _ in 0..8 {
         sections::empty::measure(|| ());
     }
     let measured = coordinate_search()
         .and_then(|()| sracos())
         .and_then(|()| cem())
-        .and_then(|()| crs());
+        .and_then(|()| crs())
+        .and_then(|()| cmaes());
     if let Err(e) = measured {
         defmt::error!("benchmark failed: {}", e);
         exit_failure()
@@ -93,7 +99,7 @@ fn main() -> ! {
 }
 
 // One function per optimizer, never inlined, so that each one's state lives in its own
-// stack frame and the peak stack is that of the largest, not of all four together.
+// stack frame and the peak stack is that of the largest, not of all of them together.
 
 #[inline(never)]
 fn coordinate_search() -> Result<(), Error> {
@@ -117,4 +123,20 @@ fn cem() -> Result<(), Error> {
 #[inline(never)]
 fn crs() -> Result<(), Error> {
     measure_optimizer!(auv::crs(u32::MAX), crs_ask, crs_tell)
+}
+
+#[inline(never)]
+fn cmaes() -> Result<(), Error> {
+    // σ₀ 0.25 of the box's half-width, as the AUV's coordinate-search step; a decomposition
+    // every generation (the default).
+    let config = CmaesConfig {
+        initial_sigma: 0.25,
+        max_evaluations: u32::MAX,
+        ..CmaesConfig::DEFAULT
+    };
+    measure_optimizer!(
+        AuvCmaes::try_new(auv::bounds()?, ctrl_adapt::Vector::zeros(), config),
+        cmaes_ask,
+        cmaes_tell
+    )
 }
