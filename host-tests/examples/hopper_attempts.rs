@@ -21,6 +21,7 @@
 //! the test (seeds 10 001–10 005) and 10 more (30 001–30 010).
 
 use ctrl_adapt::optimizer::{CemConfig, DiagonalCem, Optimizer, Status, Vector, Weighting};
+use host_tests::hopper_task::spreads_on;
 use host_tests::hopper_task::{self, HopEpisode, P, evaluate, plant};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -87,26 +88,15 @@ fn learn<O: Optimizer<P>>(
     best.theta
 }
 
-fn spreads(theta: Vector<P>, seeds: impl Iterator<Item = u64>) -> (Vec<f64>, bool) {
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(2);
-    let e: Vec<HopEpisode> = seeds
-        .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false).expect("episode"))
-        .collect();
-    (
-        e.iter().map(|e| e.apex_spread() * 100.0).collect(),
-        e.iter().all(HopEpisode::hops_stably),
-    )
-}
-
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }
 
 fn report(stage: &str, theta: Vector<P>) {
-    let (train, _) = spreads(theta, 1001..=1003);
-    let (unseen, stable) = spreads(theta, 10_001..=10_005);
-    let (more, stable_more) = spreads(theta, 30_001..=30_010);
+    let (train, _) = spreads_on(theta, 1001..=1003).expect("episode");
+    let (unseen, stable) = spreads_on(theta, 10_001..=10_005).expect("episode");
+    let (more, stable_more) = spreads_on(theta, 30_001..=30_010).expect("episode");
     println!(
         "{stage}: spread (cm) on courses 1001–1003 {train:.2?}; unseen 10001–10005 {unseen:.2?}, \
          median {:.2}; 30001–30010 median {:.2}, max {:.2}; stable hopping {}",

@@ -43,10 +43,12 @@
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
+use host_tests::hopper_task::spreads_on;
 use host_tests::hopper_task::{
     self, HopEpisode, K, P, bounds, coordinate_search, evaluate, plant, run_episode,
     training_course,
 };
+use host_tests::median;
 use nalgebra::{SMatrix, SVector, SymmetricEigen};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -124,27 +126,10 @@ fn normal<R: RngCore>(rng: &mut R) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// Spreads (cm) and stability of `theta` on `seeds`.
-fn spreads(theta: Vector<P>, seeds: impl Iterator<Item = u64>) -> (Vec<f64>, bool) {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2);
-    let e: Vec<HopEpisode> = seeds
-        .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false).expect("episode"))
-        .collect();
-    (
-        e.iter().map(|e| e.apex_spread() * 100.0).collect(),
-        e.iter().all(HopEpisode::hops_stably),
-    )
-}
-
 /// One row of the table: the θ's training spread, unseen median / max, stability.
 fn row(label: &str, episodes: usize, cost: f64, theta: Vector<P>, extra: &str) {
-    let (train, stable_t) = spreads(theta, 1001..=1001);
-    let (unseen, stable_u) = spreads(theta, UNSEEN);
+    let (train, stable_t) = spreads_on(theta, 1001..=1001).expect("episode");
+    let (unseen, stable_u) = spreads_on(theta, UNSEEN).expect("episode");
     let max = unseen.iter().copied().fold(0.0, f64::max);
     // The plain cost on the training course split into its apex term and the rest
     // (energy, limits, missing hops).

@@ -31,9 +31,11 @@
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
+use host_tests::hopper_task::spreads_on;
 use host_tests::hopper_task::{
     self, HopEpisode, P, bounds, evaluate, plant, run_episode, training_course,
 };
+use host_tests::median;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -70,27 +72,10 @@ fn shaped(e: &HopEpisode) -> f64 {
     mean_sq(e.apexes.get(3..).unwrap_or(&[])) + rest + 10.0 * e.apex_spread().powi(2)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// Spreads (cm) and stability of `theta` on `seeds`.
-fn spreads(theta: Vector<P>, seeds: impl Iterator<Item = u64>) -> (Vec<f64>, bool) {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(2);
-    let e: Vec<HopEpisode> = seeds
-        .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false).expect("episode"))
-        .collect();
-    (
-        e.iter().map(|e| e.apex_spread() * 100.0).collect(),
-        e.iter().all(HopEpisode::hops_stably),
-    )
-}
-
 /// One row of the table (as the diagnostic's).
 fn row(label: &str, episodes: u32, cost: f32, theta: Vector<P>, extra: &str) {
-    let (train, stable_t) = spreads(theta, 1001..=1001);
-    let (unseen, stable_u) = spreads(theta, UNSEEN);
+    let (train, stable_t) = spreads_on(theta, 1001..=1001).expect("episode");
+    let (unseen, stable_u) = spreads_on(theta, UNSEEN).expect("episode");
     let max = unseen.iter().copied().fold(0.0, f64::max);
     let e = evaluate(
         theta,

@@ -22,13 +22,14 @@
 //! their median, and the apex after a stance on each block height (learned policy, all
 //! unseen courses).
 
-use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Optimizer, Vector};
-use host_tests::hopper::{Hopper, HopperConfig, NominalHopping, SeaConfig};
+use ctrl_adapt::optimizer::{Optimizer, Vector};
+use host_tests::hopper::{HopperConfig, NominalHopping, SeaConfig};
 use host_tests::hopper_task::{
     self, HopEpisode, LEARNING_EPISODES, P, TRAINING_SEED, coordinate_search, evaluate_for,
     plant_for, run_episode,
 };
-use host_tests::run;
+use host_tests::hopper_tuning;
+use host_tests::median;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -36,101 +37,15 @@ const EVAL_SEEDS: std::ops::RangeInclusive<u64> = 10_001..=10_005;
 
 // ---------------------------------------------------------------- nominal tuning
 
-const LOWER: [f64; 6] = [0.3, -2.0, 0.0, 0.0, 5.0, 0.1];
-const UPPER: [f64; 6] = [1.0, -0.3, 0.9, 1.0, 150.0, 5.0];
-
-fn nominal(p: [f64; 6]) -> NominalHopping {
-    NominalHopping {
-        period: p[0],
-        knee_mean: p[1],
-        knee_amplitude: p[2],
-        phase: p[3],
-        kp: p[4],
-        kd: p[5],
-    }
-}
-
-fn from_unit(u: &Vector<6>) -> [f64; 6] {
-    core::array::from_fn(|i| LOWER[i] + f64::from(u[i]) * (UPPER[i] - LOWER[i]))
-}
-
-fn to_unit(p: [f64; 6]) -> Vector<6> {
-    Vector::from_fn(|i, _| ((p[i] - LOWER[i]) / (UPPER[i] - LOWER[i])) as f32)
-}
-
-fn nominal_episode(config: HopperConfig, nominal: NominalHopping) -> Hopper {
-    let mut hopper = Hopper::new(config, 1);
-    for _ in 0..hopper.steps_per_episode() {
-        hopper.step(nominal.torques(&config, &hopper.state()));
-        if hopper.collapsed() {
-            break;
-        }
-    }
-    hopper
-}
-
-/// The cost of `tests/hopper_tuning.rs`, with motor-limit steps counted as violations.
-fn tuning_cost(hopper: &Hopper) -> f64 {
-    let mut c = if hopper.collapsed() { 10.0 } else { 0.0 };
-    let a: Vec<f64> = hopper.apex_heights().iter().skip(3).copied().collect();
-    if a.len() < 4 {
-        return c + 5.0 + (4 - a.len()) as f64;
-    }
-    let n = a.len() as f64;
-    let mse = a.iter().map(|x| (x - 0.6).powi(2)).sum::<f64>() / n;
-    let mean = a.iter().sum::<f64>() / n;
-    let var = a.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
-    let s = hopper.stats();
-    c += 100.0 * mse + 100.0 * var;
-    let violations = s.torque_limit_steps + s.joint_limit_steps + s.motor_limit_steps;
-    c + 0.01 * f64::from(violations) + 1e-4 * s.absolute_work
-}
-
-/// The procedure of `tests/hopper_tuning.rs` on `leg` over flat ground.
+/// The procedure of `host_tests::hopper_tuning` (that of `tests/hopper_tuning.rs`; its cost
+/// counts the series-elastic motor's limit steps as violations too) on `leg`.
 fn tune(leg: HopperConfig) -> NominalHopping {
-    let config = HopperConfig {
-        episode_duration: 8.0,
-        ground_heights: &[0.0],
-        ..leg
-    };
-    let mut start = None;
-    for kp in [20.0, 30.0, 45.0] {
-        for phase in [0.6, 0.7] {
-            for amplitude in [0.5, 0.65] {
-                let p = [0.62, -0.85, amplitude, phase, kp, 0.6];
-                let c = tuning_cost(&nominal_episode(config, nominal(p)));
-                if start.is_none_or(|(_, best)| c < best) {
-                    start = Some((p, c));
-                }
-            }
-        }
-    }
-    let (start, _) = start.expect("grid is not empty");
-    let bounds = Bounds::<6>::uniform(0.0, 1.0).expect("valid box");
-    let search_config = CoordinateConfig {
-        initial_step: 0.1,
-        tolerance: 1e-3,
-        max_evaluations: 600,
-        ..CoordinateConfig::DEFAULT
-    };
-    let mut search =
-        CoordinateSearch::try_new(bounds, to_unit(start), search_config).expect("valid search");
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-    let result = run(
-        &mut search,
-        &mut rng,
-        600,
-        |u, _| tuning_cost(&nominal_episode(config, nominal(from_unit(u)))) as f32,
-        |_, _, _| {},
-    )
-    .expect("tuning runs");
-    let tuned = nominal(from_unit(&result.best_theta));
+    let t = hopper_tuning::tune(leg).expect("tuning runs");
     println!(
-        "  tuned on flat ground: {} episodes, cost {:.4}: {tuned:?}",
-        result.costs.len(),
-        result.best_cost()
+        "  tuned on flat ground: {} episodes, cost {:.4}: {:?}",
+        t.episodes, t.cost, t.nominal
     );
-    tuned
+    t.nominal
 }
 
 /// Apexes after 3 hops and limit counts of `nominal` on flat ground (8 s).
@@ -140,7 +55,7 @@ fn describe_flat(leg: HopperConfig, nominal: NominalHopping) {
         ground_heights: &[0.0],
         ..leg
     };
-    let hopper = nominal_episode(config, nominal);
+    let hopper = hopper_tuning::episode(config, nominal);
     let a = hopper.apex_heights().get(3..).unwrap_or(&[]);
     let max = a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let min = a.iter().copied().fold(f64::INFINITY, f64::min);
@@ -156,11 +71,6 @@ fn describe_flat(leg: HopperConfig, nominal: NominalHopping) {
 }
 
 // ---------------------------------------------------------------- learning protocol
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 fn evaluations(leg: HopperConfig, nominal: &NominalHopping, theta: Vector<P>) -> Vec<HopEpisode> {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(2);

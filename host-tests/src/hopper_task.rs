@@ -33,7 +33,7 @@ use ctrl_adapt::controller::{
 use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector};
 use ctrl_adapt::reward::{ApexConfig, ApexHeightCost, HopSample};
 use nalgebra::{SMatrix, SVector};
-use rand_core::RngCore;
+use rand_core::{RngCore, SeedableRng};
 
 use crate::hopper::{Hopper, HopperConfig, NominalHopping};
 
@@ -444,4 +444,20 @@ pub fn evaluate_for<G: RngCore>(
     let mut deployed = adapter_for(coordinate_search(theta, 1)?, 1, theta, nominal)?;
     deployed.set_mode(ctrl_adapt::controller::Mode::Deploy)?;
     run_episode(&mut deployed, hopper, rng, record)
+}
+
+/// The apex spreads (cm) of the fixed policy `theta` on the courses `seeds` (one episode
+/// each, in order), and whether it hops stably on all of them ([`HopEpisode::hops_stably`]).
+pub fn spreads_on(
+    theta: Vector<P>,
+    seeds: impl Iterator<Item = u64>,
+) -> Result<(Vec<f64>, bool), Error> {
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(2);
+    let episodes = seeds
+        .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((
+        episodes.iter().map(|e| e.apex_spread() * 100.0).collect(),
+        episodes.iter().all(HopEpisode::hops_stably),
+    ))
 }

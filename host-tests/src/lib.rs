@@ -14,6 +14,7 @@ pub mod double_integrator;
 pub mod functions;
 pub mod hopper;
 pub mod hopper_task;
+pub mod hopper_tuning;
 pub mod pil;
 pub mod plots;
 
@@ -81,4 +82,15 @@ pub fn random_search<const N: usize, R: RngCore>(
     (0..budget)
         .map(|_| objective(&bounds.sample_uniform(rng)))
         .fold(f32::INFINITY, f32::min)
+}
+
+/// The median of `v` (the mean of the two middle values for an even count; NaN when empty).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => f64::NAN,
+        _ if n % 2 == 1 => v[n / 2],
+        _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }

@@ -21,6 +21,7 @@ use host_tests::auv_task::{
     self, AuvEpisode, best_so_far, episodes_to_success, global_search, local_config, plant,
     run_episode,
 };
+use host_tests::median;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -87,16 +88,6 @@ fn run_seed(seed: u64) -> SeedRun {
         from_zero,
         global,
         from_global,
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
     }
 }
 

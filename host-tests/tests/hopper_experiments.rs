@@ -20,6 +20,7 @@ use host_tests::hopper_task::{
     self, HopEpisode, LEARNING_EPISODES, P, coordinate_search, evaluate, plant, run_episode,
     training_course,
 };
+use host_tests::median;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -67,11 +68,6 @@ fn evaluations(theta: Vector<P>) -> Vec<HopEpisode> {
     EVAL_SEEDS
         .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false).unwrap())
         .collect()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn spreads(episodes: &[HopEpisode]) -> Vec<f64> {

@@ -26,6 +26,7 @@ use ctrl_adapt::optimizer::{
     TwoPhase, Vector, Weighting,
 };
 use host_tests::auv::AuvConfig;
+use host_tests::median;
 use host_tests::{auv_task, hopper_task};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -108,16 +109,6 @@ fn over_seeds(run: impl Fn(u64) -> Outcome + Sync) -> Vec<Outcome> {
     let mut all: Vec<(u64, Outcome)> = a.into_iter().chain(b).collect();
     all.sort_by_key(|(s, _)| *s);
     all.into_iter().map(|(_, o)| o).collect()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
 }
 
 /// One table row.
