@@ -43,12 +43,10 @@
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
-use host_tests::hopper_task::spreads_on;
 use host_tests::hopper_task::{
     self, HopEpisode, K, P, bounds, coordinate_search, evaluate, plant, run_episode,
     training_course,
 };
-use host_tests::median;
 use nalgebra::{SMatrix, SVector, SymmetricEigen};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -71,7 +69,6 @@ const PENALTY: f64 = 0.01;
 const CHECKPOINTS: &[usize] = &[400, 1000, 2000, 4000, 6000, 8000, 10_000, 12_000];
 
 /// Unseen courses of `tests/hopper_experiments.rs`.
-const UNSEEN: std::ops::RangeInclusive<u64> = 10_001..=10_005;
 
 #[derive(Clone, Copy, PartialEq)]
 enum Variant {
@@ -126,30 +123,10 @@ fn normal<R: RngCore>(rng: &mut R) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
-/// One row of the table: the θ's training spread, unseen median / max, stability.
+/// One row of the table ([`hopper_task::figures_row`]).
 fn row(label: &str, episodes: usize, cost: f64, theta: Vector<P>, extra: &str) {
-    let (train, stable_t) = spreads_on(theta, 1001..=1001).expect("episode");
-    let (unseen, stable_u) = spreads_on(theta, UNSEEN).expect("episode");
-    let max = unseen.iter().copied().fold(0.0, f64::max);
-    // The plain cost on the training course split into its apex term and the rest
-    // (energy, limits, missing hops).
-    let e = evaluate(
-        theta,
-        &mut training_course(),
-        &mut Xoshiro256PlusPlus::seed_from_u64(2),
-        false,
-    )
-    .expect("episode");
-    let apex =
-        e.apexes.iter().map(|h| (h - 0.6).powi(2)).sum::<f64>() / e.apexes.len().max(1) as f64;
-    let rest = f64::from(e.report.cost) - apex;
-    println!(
-        "| {label} | {episodes} | {cost:.3e} | {apex:.2e} + {rest:.2e} | {:.2} | {:.2} | \
-         {max:.2} | {} | {extra} |",
-        train[0],
-        median(unseen.clone()),
-        if stable_t && stable_u { "yes" } else { "NO" }
-    );
+    let row = hopper_task::figures_row(label, episodes as u64, cost, theta, extra);
+    println!("{}", row.expect("episode"));
 }
 
 /// The coordinate search of `tests/hopper_experiments.rs` (400 episodes from zero on the

@@ -31,11 +31,9 @@
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
-use host_tests::hopper_task::spreads_on;
 use host_tests::hopper_task::{
     self, HopEpisode, P, bounds, evaluate, plant, run_episode, training_course,
 };
-use host_tests::median;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -46,7 +44,6 @@ const LAMBDA: usize = 14;
 const CHECKPOINTS: &[u32] = &[1000, 2000, 4000, 6000, 8000, 10_000, 12_000];
 
 /// Unseen courses of `tests/hopper_experiments.rs`.
-const UNSEEN: std::ops::RangeInclusive<u64> = 10_001..=10_005;
 
 #[derive(Clone, Copy, PartialEq)]
 enum Cost {
@@ -72,28 +69,10 @@ fn shaped(e: &HopEpisode) -> f64 {
     mean_sq(e.apexes.get(3..).unwrap_or(&[])) + rest + 10.0 * e.apex_spread().powi(2)
 }
 
-/// One row of the table (as the diagnostic's).
+/// One row of the table ([`hopper_task::figures_row`]).
 fn row(label: &str, episodes: u32, cost: f32, theta: Vector<P>, extra: &str) {
-    let (train, stable_t) = spreads_on(theta, 1001..=1001).expect("episode");
-    let (unseen, stable_u) = spreads_on(theta, UNSEEN).expect("episode");
-    let max = unseen.iter().copied().fold(0.0, f64::max);
-    let e = evaluate(
-        theta,
-        &mut training_course(),
-        &mut Xoshiro256PlusPlus::seed_from_u64(2),
-        false,
-    )
-    .expect("episode");
-    let apex =
-        e.apexes.iter().map(|h| (h - 0.6).powi(2)).sum::<f64>() / e.apexes.len().max(1) as f64;
-    let rest = f64::from(e.report.cost) - apex;
-    println!(
-        "| {label} | {episodes} | {cost:.3e} | {apex:.2e} + {rest:.2e} | {:.2} | {:.2} | \
-         {max:.2} | {} | {extra} |",
-        train[0],
-        median(unseen),
-        if stable_t && stable_u { "yes" } else { "NO" }
-    );
+    let row = hopper_task::figures_row(label, episodes as u64, f64::from(cost), theta, extra);
+    println!("{}", row.expect("episode"));
 }
 
 fn main() {

@@ -461,3 +461,34 @@ pub fn spreads_on(
         episodes.iter().all(HopEpisode::hops_stably),
     ))
 }
+
+/// The unseen courses of `tests/hopper_experiments.rs`.
+pub const UNSEEN_COURSES: std::ops::RangeInclusive<u64> = 10_001..=10_005;
+
+/// A Markdown table row for the fixed policy `theta` (the tables of docs/cmaes.md): `label`,
+/// `episodes`, `cost`, the plain cost on the training course split into its apex term and
+/// the rest (energy, limits, missing hops), the apex spread (cm) on the training course, the
+/// median and max over [`UNSEEN_COURSES`], whether it hops stably on all of them, `extra`.
+pub fn figures_row(
+    label: &str,
+    episodes: u64,
+    cost: f64,
+    theta: Vector<P>,
+    extra: &str,
+) -> Result<String, Error> {
+    let (train, stable_t) = spreads_on(theta, TRAINING_SEED..=TRAINING_SEED)?;
+    let (unseen, stable_u) = spreads_on(theta, UNSEEN_COURSES)?;
+    let max = unseen.iter().copied().fold(0.0, f64::max);
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(2);
+    let e = evaluate(theta, &mut training_course(), &mut rng, false)?;
+    let apex =
+        e.apexes.iter().map(|h| (h - 0.6).powi(2)).sum::<f64>() / e.apexes.len().max(1) as f64;
+    let rest = f64::from(e.report.cost) - apex;
+    Ok(format!(
+        "| {label} | {episodes} | {cost:.3e} | {apex:.2e} + {rest:.2e} | {:.2} | {:.2} | \
+         {max:.2} | {} | {extra} |",
+        train.first().copied().unwrap_or(f64::NAN),
+        crate::median(unseen),
+        if stable_t && stable_u { "yes" } else { "NO" }
+    ))
+}
