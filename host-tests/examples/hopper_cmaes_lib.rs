@@ -18,10 +18,16 @@
 //!   the adapter, but on a new course every generation (the λ candidates of a generation
 //!   share it: common random numbers within the ranking) or every episode (seeds
 //!   100 000 + generation or + episode); the rows then report the search's mean, not its
-//!   best told θ (a lucky draw on an easy course);
+//!   best told θ (a lucky draw on an easy course); `freshspread` — a new course every
+//!   episode with the spread-weighted cost `hopper_task::spread_apex_config`, through
+//!   `hopper_task::learn_on_fresh_courses`, its episodes on all cores, or `THREADS`);
+//!   `refine` — the optimizer driven directly with the spread-weighted cost averaged over
+//!   a fixed set of `REFINE_N` courses (default 5, seeds 30 001 …), usually from `env`;
 //! * `seed`: the RNG seed of the optimizer's draws.
 //!
 //! Box penalty 0.01 (as the diagnostic), tolerance 1e-6, a decomposition every generation.
+//! After a `fresh` / `freshspread` run the example prints its mean's validation cost
+//! (courses 20 001–20 010) and, after several, the run with the lowest.
 //! The rows printed are those of docs/cmaes.md's table: best objective, the plain cost on
 //! course 1001 split into apex term + rest, training spread, unseen median / max (courses
 //! 10 001–10 005), stability; plus σ and the axis ratio.
@@ -38,10 +44,10 @@ use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 /// λ = 4 + ⌊3 ln 31⌋.
-const LAMBDA: usize = 14;
+const LAMBDA: usize = hopper_task::FRESH_LAMBDA;
 
 /// Episodes at which the best-so-far θ is reported.
-const CHECKPOINTS: &[u32] = &[1000, 2000, 4000, 6000, 8000, 10_000, 12_000];
+const CHECKPOINTS: &[u32] = &[1000, 2000, 4000, 6000, 8000, 10_000, 12_000, 14_000, 16_000];
 
 /// Unseen courses of `tests/hopper_experiments.rs`.
 
@@ -55,6 +61,12 @@ enum Cost {
     Generation,
     /// Plain cost, a new course every episode: seed 100 000 + episode.
     Fresh,
+    /// The spread-weighted cost of `hopper_task::spread_apex_config`, a new course every
+    /// episode (`hopper_task::learn_on_fresh_courses`, as `tests/hopper_experiments.rs`).
+    FreshSpread,
+    /// The spread-weighted cost averaged over a fixed set of `REFINE_N` (default 5) courses,
+    /// seeds 30 001 …: a refinement with common random numbers, from `env`.
+    Refine,
 }
 
 /// The diagnostic's shaped cost: the apex term without the first 3 apexes + 10 · spread².
@@ -87,6 +99,7 @@ fn main() {
          (cm) | unseen median | unseen max | stable | notes |"
     );
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |");
+    let mut chosen: Vec<(f64, String)> = Vec::new();
     for run in &runs {
         let f: Vec<&str> = run.split(':').collect();
         assert_eq!(
@@ -102,6 +115,8 @@ fn main() {
             "shaped3" => Cost::Shaped3,
             "generation" => Cost::Generation,
             "fresh" => Cost::Fresh,
+            "freshspread" => Cost::FreshSpread,
+            "refine" => Cost::Refine,
             c => panic!("cost {c}"),
         };
         let seed: u64 = f[4].parse().expect("seed");
@@ -122,8 +137,12 @@ fn main() {
             s => panic!("start {s}"),
         };
         let label = format!("library {} σ₀ {sigma0} {} seed {seed}", f[0], f[3]);
+        let refine_n: u64 = std::env::var("REFINE_N").map_or(5, |v| v.parse().unwrap());
+        let refine: Vec<u64> = (30_001..30_001 + refine_n).collect();
         let courses: &[u64] = if cost == Cost::Shaped3 {
             &[1001, 1002, 1003]
+        } else if cost == Cost::Refine {
+            &refine
         } else {
             &[1001]
         };
@@ -141,11 +160,12 @@ fn main() {
         let report = |cma: &Cmaes<P, LAMBDA>, episodes: u32| {
             let best = cma.best().expect("told");
             // On changing courses the best told cost is a lucky draw: report the mean.
-            let (cost, theta) = if matches!(cost, Cost::Generation | Cost::Fresh) {
-                (f32::NAN, cma.mean())
-            } else {
-                (best.cost, best.theta)
-            };
+            let (cost, theta) =
+                if matches!(cost, Cost::Generation | Cost::Fresh | Cost::FreshSpread) {
+                    (f32::NAN, cma.mean())
+                } else {
+                    (best.cost, best.theta)
+                };
             row(
                 &label,
                 episodes,
@@ -165,12 +185,23 @@ fn main() {
                 report(cma, episodes);
             }
         };
-        let cma = if matches!(cost, Cost::Plain | Cost::Generation | Cost::Fresh) {
+        let cma = if matches!(cost, Cost::Fresh | Cost::FreshSpread) {
+            let apex = if cost == Cost::Fresh {
+                hopper_task::apex_config()
+            } else {
+                hopper_task::spread_apex_config()
+            };
+            let threads = std::env::var("THREADS")
+                .map_or_else(|_| hopper_task::threads(), |t| t.parse().expect("THREADS"));
+            hopper_task::learn_on_fresh_courses(cma, budget, apex, &mut rng, threads, |_, cma| {
+                checkpoint(cma)
+            })
+            .expect("episode")
+        } else if matches!(cost, Cost::Plain | Cost::Generation) {
             let mut adapter = hopper_task::adapter(cma, budget, start).expect("adapter");
             for k in 0..u64::from(budget) {
                 let mut course = match cost {
                     Cost::Generation => plant(true, 100_000 + k / LAMBDA as u64),
-                    Cost::Fresh => plant(true, 100_000 + k),
                     _ => training_course(),
                 };
                 run_episode(&mut adapter, &mut course, &mut rng, false).expect("episode");
@@ -187,6 +218,12 @@ fn main() {
                 let c = courses
                     .iter()
                     .map(|&s| {
+                        if cost == Cost::Refine {
+                            return f64::from(
+                                hopper_task::told_cost(theta, s, hopper_task::spread_apex_config())
+                                    .unwrap(),
+                            );
+                        }
                         shaped(
                             &evaluate(theta, &mut plant(true, s), &mut eval_rng, false)
                                 .expect("episode"),
@@ -208,5 +245,25 @@ fn main() {
         );
         println!("  θ = {:?}", cma.best().expect("told").theta.as_slice());
         println!("  mean = {:?}", cma.mean().as_slice());
+        if matches!(cost, Cost::Fresh | Cost::FreshSpread) {
+            let apex = if cost == Cost::Fresh {
+                hopper_task::apex_config()
+            } else {
+                hopper_task::spread_apex_config()
+            };
+            let v = hopper_task::validation_cost(cma.mean(), apex, hopper_task::threads());
+            let v = v.expect("episode");
+            println!("  validation cost of the mean (courses 20 001–20 010): {v:.3e}");
+            chosen.push((v, label.clone()));
+        }
+    }
+    // Independent runs with a selection: the one a robot would keep is the run whose mean
+    // costs least on the validation courses (not on the unseen courses reported above).
+    if chosen.len() > 1 {
+        chosen.sort_by(|a, b| a.0.total_cmp(&b.0));
+        println!(
+            "lowest validation cost: {} ({:.3e})",
+            chosen[0].1, chosen[0].0
+        );
     }
 }

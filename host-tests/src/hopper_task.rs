@@ -30,7 +30,10 @@
 use ctrl_adapt::controller::{
     Adapter, AdapterConfig, EpisodeReport, LinearPolicy, Pd, PeriodicPd, PeriodicRbf,
 };
-use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector};
+use ctrl_adapt::optimizer::{
+    Bounds, Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status,
+    Vector,
+};
 use ctrl_adapt::reward::{ApexConfig, ApexHeightCost, HopSample};
 use nalgebra::{SMatrix, SVector};
 use rand_core::{RngCore, SeedableRng};
@@ -181,6 +184,28 @@ pub fn apex_config() -> ApexConfig {
         missing_hop_cost: 0.01,
         energy_weight: 1e-6,
         violation_cost: 1e-6,
+        ..ApexConfig::DEFAULT
+    }
+}
+
+/// Weight of the squared apex spread in [`spread_apex_config`]: a 2 cm spread costs 4·10⁻³,
+/// 1 cm 10⁻³, against ≈ 6·10⁻⁵ of energy and 1–5·10⁻⁵ of mean square deviation for policies
+/// at that level (the weight of the diagnostic's shaped cost, docs/cmaes.md).
+pub const SPREAD_WEIGHT: f32 = 10.0;
+
+/// [`apex_config`] aimed at the apex variation, for learning on a new course every episode
+/// ([`learn_on_fresh_courses`]): the first [`TRANSIENT_HOPS`] apexes (the drop from rest)
+/// left out of the apex terms, plus [`SPREAD_WEIGHT`] · (max − min apex)², and 0.05 per
+/// missing hop instead of 0.01. The nominal's spread term is then ≈ 0.06, so a missing hop
+/// must cost about as much (as much as a 7 cm spread), or dropping hops below the 0.45 m
+/// apex threshold (which hides them from the spread) would be the cheap way out; 16 missing
+/// hops (0.8) still cost less than a collapse (1.0).
+pub fn spread_apex_config() -> ApexConfig {
+    ApexConfig {
+        transient_hops: TRANSIENT_HOPS as u32,
+        spread_weight: SPREAD_WEIGHT,
+        missing_hop_cost: 0.05,
+        ..apex_config()
     }
 }
 
@@ -216,10 +241,27 @@ pub fn adapter_for<O: Optimizer<P>>(
     initial: Vector<P>,
     nominal: &NominalHopping,
 ) -> Result<HopperAdapter<O>, Error> {
+    adapter_with(
+        optimizer,
+        learning_episodes,
+        initial,
+        nominal,
+        apex_config(),
+    )
+}
+
+/// [`adapter_for`] with the cost `apex` (e.g. [`spread_apex_config`]).
+pub fn adapter_with<O: Optimizer<P>>(
+    optimizer: O,
+    learning_episodes: u32,
+    initial: Vector<P>,
+    nominal: &NominalHopping,
+    apex: ApexConfig,
+) -> Result<HopperAdapter<O>, Error> {
     Adapter::try_new(
         optimizer,
         controller_for(nominal),
-        ApexHeightCost::try_new(apex_config())?,
+        ApexHeightCost::try_new(apex)?,
         adapter_config(learning_episodes),
         initial,
     )
@@ -441,9 +483,41 @@ pub fn evaluate_for<G: RngCore>(
     record: bool,
     nominal: &NominalHopping,
 ) -> Result<HopEpisode, Error> {
-    let mut deployed = adapter_for(coordinate_search(theta, 1)?, 1, theta, nominal)?;
+    evaluate_with(theta, hopper, rng, record, nominal, apex_config())
+}
+
+/// [`evaluate_for`] scored with the cost `apex`.
+pub fn evaluate_with<G: RngCore>(
+    theta: Vector<P>,
+    hopper: &mut Hopper,
+    rng: &mut G,
+    record: bool,
+    nominal: &NominalHopping,
+    apex: ApexConfig,
+) -> Result<HopEpisode, Error> {
+    let mut deployed = adapter_with(coordinate_search(theta, 1)?, 1, theta, nominal, apex)?;
     deployed.set_mode(ctrl_adapt::controller::Mode::Deploy)?;
     run_episode(&mut deployed, hopper, rng, record)
+}
+
+/// The cost a learning [`Adapter`] (cost `apex`) tells for one episode of `theta` on the
+/// course of `seed`: the episode's cost, or the failure cost if it failed (collapse,
+/// non-finite cost, faulty ticks).
+pub fn told_cost(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<f32, Error> {
+    let mut unused = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0);
+    let e = evaluate_with(
+        theta,
+        &mut plant(true, seed),
+        &mut unused,
+        false,
+        &NominalHopping::TUNED,
+        apex,
+    )?;
+    Ok(if e.report.failed {
+        adapter_config(1).failure_cost
+    } else {
+        e.report.cost
+    })
 }
 
 /// The apex spreads (cm) of the fixed policy `theta` on the courses `seeds` (one episode
@@ -491,4 +565,128 @@ pub fn figures_row(
         crate::median(unseen),
         if stable_t && stable_u { "yes" } else { "NO" }
     ))
+}
+
+/// Threads for [`learn_on_fresh_courses`]: the machine's parallelism.
+pub fn threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Population of [`FreshCmaes`]: the tutorial's 4 + ⌊3 ln 31⌋.
+pub const FRESH_LAMBDA: usize = 14;
+
+/// The full-covariance CMA-ES that learns on a new course every episode.
+pub type FreshCmaes = Cmaes<P, FRESH_LAMBDA>;
+
+/// Seed of the first learning course of [`learn_on_fresh_courses`]: episode k (from 0) runs on
+/// the block sequence of seed `FRESH_COURSES + k`, far from [`TRAINING_SEED`] and
+/// [`UNSEEN_COURSES`].
+pub const FRESH_COURSES: u64 = 100_000;
+
+/// [`FreshCmaes`] from θ = 0 with σ₀ = `sigma0` (relative to each half-range of [`bounds`]),
+/// box penalty 0.01 (≈ the cost scale: a sample 0.1 half-range outside the box costs 10⁻⁴),
+/// tolerance 10⁻⁶ and a budget of `episodes`.
+pub fn fresh_cmaes(sigma0: f32, episodes: u32) -> Result<FreshCmaes, Error> {
+    Cmaes::try_new(
+        bounds(),
+        Vector::zeros(),
+        CmaesConfig {
+            initial_sigma: sigma0,
+            penalty: 0.01,
+            tolerance: 1e-6,
+            max_evaluations: episodes,
+            ..CmaesConfig::DEFAULT
+        },
+    )
+}
+
+/// Learns with `cma` for up to `episodes` episodes, episode k (from 0) on a new course (seed
+/// [`FRESH_COURSES`] + k: the blocks the robot meets are never the same twice, as when the
+/// paper's blocks were slid in by hand), each told the cost a learning [`Adapter`] with the
+/// [`ApexHeightCost`] `apex` tells ([`told_cost`]; e.g. [`spread_apex_config`]). Calls
+/// `on_episode(k + 1, &cma)` after each tell; stops early if the search stops. Returns the
+/// search: deploy its [`Cmaes::mean`], not its best told θ (a lucky draw on an easy course).
+///
+/// The episodes of a generation run on `threads` threads: the candidates a generation will
+/// hand out are drawn first on a copy of the search and of `rng` (telling the copy
+/// placeholder costs: within a generation the draws do not depend on the costs), the
+/// episodes run, and the search is then asked and told in order, checking each candidate
+/// against its copy. The run is therefore the sequential one, bit for bit, whatever
+/// `threads` is (`tests/hopper_experiments.rs` checks this).
+pub fn learn_on_fresh_courses<G: RngCore + Clone>(
+    mut cma: FreshCmaes,
+    episodes: u32,
+    apex: ApexConfig,
+    rng: &mut G,
+    threads: usize,
+    mut on_episode: impl FnMut(u32, &FreshCmaes),
+) -> Result<FreshCmaes, Error> {
+    let mut k = 0u32;
+    while k < episodes && cma.status() == Status::Running {
+        let left = FRESH_LAMBDA - cma.told_in_generation();
+        let n = left.min((episodes - k) as usize);
+        let (mut probe, mut probe_rng) = (cma.clone(), rng.clone());
+        let candidates = (0..n)
+            .map(|_| {
+                let theta = probe.ask(&mut probe_rng)?;
+                probe.tell(0.0)?;
+                Ok(theta)
+            })
+            .collect::<Result<Vec<_>, Error>>()?;
+        let costs = parallel_costs(&candidates, FRESH_COURSES + u64::from(k), apex, threads)?;
+        for (theta, cost) in candidates.iter().zip(costs) {
+            assert_eq!(
+                cma.ask(rng)?,
+                *theta,
+                "a generation's draws depend on its costs"
+            );
+            cma.tell(cost)?;
+            k += 1;
+            on_episode(k, &cma);
+        }
+    }
+    Ok(cma)
+}
+
+/// [`told_cost`] of `candidates[i]` on course `first_seed + i`, on up to `threads` threads.
+fn parallel_costs(
+    candidates: &[Vector<P>],
+    first_seed: u64,
+    apex: ApexConfig,
+    threads: usize,
+) -> Result<Vec<f32>, Error> {
+    let chunk = candidates.len().div_ceil(threads.max(1)).max(1);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = candidates
+            .chunks(chunk)
+            .enumerate()
+            .map(|(c, part)| {
+                scope.spawn(move || {
+                    part.iter()
+                        .enumerate()
+                        .map(|(i, theta)| {
+                            told_cost(*theta, first_seed + (c * chunk + i) as u64, apex)
+                        })
+                        .collect::<Result<Vec<_>, Error>>()
+                })
+            })
+            .collect();
+        let mut costs = Vec::with_capacity(candidates.len());
+        for h in handles {
+            costs.extend(h.join().expect("an episode thread panicked")?);
+        }
+        Ok(costs)
+    })
+}
+
+/// Courses for choosing among learned policies (e.g. the results of independent searches):
+/// never learned on, and not the [`UNSEEN_COURSES`] the results are reported on.
+pub const VALIDATION_COURSES: std::ops::RangeInclusive<u64> = 20_001..=20_010;
+
+/// The mean told cost ([`told_cost`] with `apex`) of `theta` over [`VALIDATION_COURSES`],
+/// the episodes on up to `threads` threads.
+pub fn validation_cost(theta: Vector<P>, apex: ApexConfig, threads: usize) -> Result<f64, Error> {
+    let thetas: Vec<_> = VALIDATION_COURSES.map(|_| theta).collect();
+    let costs = parallel_costs(&thetas, *VALIDATION_COURSES.start(), apex, threads)?;
+    Ok(costs.iter().map(|&c| f64::from(c)).sum::<f64>() / costs.len() as f64)
 }

@@ -10,6 +10,11 @@
 //! Learning: 400 episodes of 12 s, every one on the same training course (the block
 //! sequence of seed 1001, replayed: common random numbers). Evaluation: the initial and the
 //! learned policy on 5 courses never used in learning (seeds 10 001–10 005).
+//!
+//! Also checks that the fresh-course CMA-ES learner of the diagnostics
+//! (`hopper_task::learn_on_fresh_courses`, 12 000 episodes and more per run: not run here)
+//! is, with its episodes on several threads, the sequential run through a learning
+//! `Adapter`.
 
 #![cfg(not(debug_assertions))]
 
@@ -17,12 +22,15 @@ use std::sync::OnceLock;
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
 use host_tests::hopper_task::{
-    self, HopEpisode, LEARNING_EPISODES, P, coordinate_search, evaluate, plant, run_episode,
-    training_course,
+    self, HopEpisode, LEARNING_EPISODES, P, coordinate_search, evaluate, fresh_cmaes,
+    learn_on_fresh_courses, plant, run_episode, spread_apex_config, training_course,
 };
+
+/// σ₀ of the fresh-course CMA-ES runs of docs/experiments.md (relative to the half-ranges).
+const FRESH_SIGMA0: f32 = 0.3;
 use host_tests::median;
 use rand_core::SeedableRng;
-use rand_xoshiro::Xoshiro128PlusPlus;
+use rand_xoshiro::{Xoshiro128PlusPlus, Xoshiro256PlusPlus};
 
 const EVAL_SEEDS: std::ops::RangeInclusive<u64> = 10_001..=10_005;
 
@@ -121,4 +129,54 @@ fn learning_reduces_the_apex_spread_and_keeps_hopping() {
         );
     }
     assert!(ma <= 0.4 * mb, "median spread {ma} vs initial {mb}");
+}
+
+/// `learn_on_fresh_courses` runs a generation's episodes in parallel but is the sequential
+/// run through a learning `Adapter` bit for bit: two and a half generations (35 episodes)
+/// driven by the adapter one episode at a time, and by `learn_on_fresh_courses` on 1 and on
+/// 3 threads, end in the same search state (mean, σ, covariance, best).
+#[test]
+fn fresh_course_learning_is_the_adapters_run_on_any_number_of_threads() {
+    const EPISODES: u32 = 35;
+    let sequential = {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
+        let cma = fresh_cmaes(FRESH_SIGMA0, EPISODES).unwrap();
+        let mut adapter = hopper_task::adapter_with(
+            cma,
+            EPISODES,
+            Vector::zeros(),
+            &host_tests::hopper::NominalHopping::TUNED,
+            spread_apex_config(),
+        )
+        .unwrap();
+        for k in 0..EPISODES {
+            let mut course = plant(true, hopper_task::FRESH_COURSES + u64::from(k));
+            run_episode(&mut adapter, &mut course, &mut rng, false).unwrap();
+        }
+        adapter.optimizer().clone()
+    };
+    let parallel = |threads| {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
+        let cma = fresh_cmaes(FRESH_SIGMA0, EPISODES).unwrap();
+        let mut told = 0;
+        let cma = learn_on_fresh_courses(
+            cma,
+            EPISODES,
+            spread_apex_config(),
+            &mut rng,
+            threads,
+            |k, _| told = k,
+        )
+        .unwrap();
+        assert_eq!(told, EPISODES);
+        cma
+    };
+    assert_eq!(sequential.generations(), 2);
+    for cma in [parallel(1), parallel(3)] {
+        assert_eq!(cma.evaluations(), EPISODES);
+        assert_eq!(cma.mean(), sequential.mean());
+        assert_eq!(cma.sigma().to_bits(), sequential.sigma().to_bits());
+        assert_eq!(cma.covariance(), sequential.covariance());
+        assert_eq!(cma.best(), sequential.best());
+    }
 }
