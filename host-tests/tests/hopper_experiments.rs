@@ -14,7 +14,7 @@
 //! Also checks that the fresh-course CMA-ES learner of docs/experiments.md (fourth round;
 //! `hopper_task::learn_on_fresh_courses`, 12 000 episodes per run: not run here), which runs
 //! a generation's episodes on several threads, is the sequential run through a learning
-//! `Adapter`, bit for bit. It reaches the paper's ≈ 1 cm on about one run in three; no test
+//! `Adapter`, bit for bit. It reaches the paper's ≈ 1 cm on one run in four to two; no test
 //! asserts it (a seed that happens to pass would break with any change to the random
 //! streams).
 
