@@ -359,13 +359,8 @@ fn main() {
                 V::from_fn(|i, _| f64::from(theta[i]) / half()[i])
             }
             "env" => {
-                let text = std::env::var("CMAES_THETA").expect("CMAES_THETA");
-                let theta: Vec<f64> = text
-                    .trim_matches(|c| c == '[' || c == ']' || char::is_whitespace(c))
-                    .split(',')
-                    .map(|v| v.trim().parse().expect("θ component"))
-                    .collect();
-                assert_eq!(theta.len(), P, "CMAES_THETA needs {P} values");
+                let theta: Vec<f64> =
+                    hopper_task::theta_from_env().expect("CMAES_THETA is not set");
                 let start = V::from_fn(|i, _| theta[i] / half()[i]);
                 row("given θ (start)", 0, f64::NAN, theta_of(&start), "");
                 start

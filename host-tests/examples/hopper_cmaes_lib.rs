@@ -125,13 +125,8 @@ fn main() {
         let start = match f[0] {
             "zero" => Vector::<P>::zeros(),
             "env" => {
-                let text = std::env::var("CMAES_THETA").expect("CMAES_THETA");
-                let theta: Vec<f32> = text
-                    .trim_matches(|c| c == '[' || c == ']' || char::is_whitespace(c))
-                    .split(',')
-                    .map(|v| v.trim().parse().expect("θ component"))
-                    .collect();
-                assert_eq!(theta.len(), P, "CMAES_THETA needs {P} values");
+                let theta: Vec<f32> =
+                    hopper_task::theta_from_env().expect("CMAES_THETA is not set");
                 let theta = Vector::<P>::from_column_slice(&theta);
                 row("given θ (start)", 0, f32::NAN, theta, "");
                 theta

@@ -15,7 +15,7 @@
 
 use ctrl_adapt::optimizer::Vector;
 use host_tests::hopper::HopperConfig;
-use host_tests::hopper_task::{P, evaluate, plant_for};
+use host_tests::hopper_task::{self, P, evaluate, plant_for};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -27,18 +27,8 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
 }
 
 fn main() {
-    let theta = match std::env::var("CMAES_THETA") {
-        Ok(text) => {
-            let v: Vec<f32> = text
-                .trim_matches(|c| c == '[' || c == ']' || char::is_whitespace(c))
-                .split(',')
-                .map(|v| v.trim().parse().expect("θ component"))
-                .collect();
-            assert_eq!(v.len(), P, "CMAES_THETA needs {P} values");
-            Vector::<P>::from_column_slice(&v)
-        }
-        Err(_) => Vector::<P>::zeros(),
-    };
+    let theta = hopper_task::theta_from_env::<f32>()
+        .map_or_else(Vector::<P>::zeros, |v| Vector::<P>::from_column_slice(&v));
     let change_probability: f64 = std::env::args()
         .nth(1)
         .map_or(1.0, |p| p.parse().expect("probability"));

@@ -747,3 +747,22 @@ pub fn learn_with_validation<G: RngCore + Clone>(
         validation_cost,
     })
 }
+
+/// The θ in the environment variable `CMAES_THETA`, as the examples print it ([`P`]
+/// comma-separated numbers, optionally in brackets), parsed as `T`; `None` when unset.
+///
+/// # Panics
+/// On a malformed value or a count other than [`P`] (a tool for the examples).
+pub fn theta_from_env<T: std::str::FromStr>() -> Option<Vec<T>> {
+    let text = std::env::var("CMAES_THETA").ok()?;
+    let theta: Vec<T> = text
+        .trim_matches(|c| c == '[' || c == ']' || char::is_whitespace(c))
+        .split(',')
+        .map(|v| match v.trim().parse() {
+            Ok(x) => x,
+            Err(_) => panic!("CMAES_THETA: {v:?} is not a number"),
+        })
+        .collect();
+    assert_eq!(theta.len(), P, "CMAES_THETA needs {P} values");
+    Some(theta)
+}
