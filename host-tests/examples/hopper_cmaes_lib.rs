@@ -38,10 +38,8 @@
 
 use std::time::Instant;
 
-use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
-use host_tests::hopper_task::{
-    self, HopEpisode, P, bounds, evaluate, plant, run_episode, training_course,
-};
+use ctrl_adapt::optimizer::{Cmaes, Optimizer, Status, Vector};
+use host_tests::hopper_task::{self, HopEpisode, P, evaluate, plant, run_episode, training_course};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -144,14 +142,7 @@ fn main() {
             &[1001]
         };
         let evaluations = budget.div_ceil(courses.len() as u32);
-        let config = CmaesConfig {
-            initial_sigma: sigma0,
-            penalty: 0.01,
-            tolerance: 1e-6,
-            max_evaluations: evaluations,
-            ..CmaesConfig::DEFAULT
-        };
-        let cma = Cmaes::<P, LAMBDA>::try_new(bounds(), start, config).expect("valid config");
+        let cma = hopper_task::fresh_cmaes(start, sigma0, evaluations).expect("valid config");
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
         let t = Instant::now();
         let report = |cma: &Cmaes<P, LAMBDA>, episodes: u32| {

@@ -581,18 +581,18 @@ pub type FreshCmaes = Cmaes<P, FRESH_LAMBDA>;
 /// [`UNSEEN_COURSES`].
 pub const FRESH_COURSES: u64 = 100_000;
 
-/// [`FreshCmaes`] from θ = 0 with σ₀ = `sigma0` (relative to each half-range of [`bounds`]),
-/// box penalty 0.01 (≈ the cost scale: a sample 0.1 half-range outside the box costs 10⁻⁴),
-/// tolerance 10⁻⁶ and a budget of `episodes`.
-pub fn fresh_cmaes(sigma0: f32, episodes: u32) -> Result<FreshCmaes, Error> {
+/// [`FreshCmaes`] from `start` with σ₀ = `sigma0` (relative to each half-range of
+/// [`bounds`]), box penalty 0.01 (≈ the cost scale: a sample 0.1 half-range outside the box
+/// costs 10⁻⁴), tolerance 10⁻⁶ and a budget of `evaluations` (the CMA-ES examples' settings).
+pub fn fresh_cmaes(start: Vector<P>, sigma0: f32, evaluations: u32) -> Result<FreshCmaes, Error> {
     Cmaes::try_new(
         bounds(),
-        Vector::zeros(),
+        start,
         CmaesConfig {
             initial_sigma: sigma0,
             penalty: 0.01,
             tolerance: 1e-6,
-            max_evaluations: episodes,
+            max_evaluations: evaluations,
             ..CmaesConfig::DEFAULT
         },
     )
