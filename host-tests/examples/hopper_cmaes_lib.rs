@@ -25,7 +25,8 @@
 //!   a fixed set of `REFINE_N` courses (default 5, seeds 30 001 …), usually from `env`;
 //! * `seed`: the RNG seed of the optimizer's draws.
 //!
-//! Box penalty 0.01 (as the diagnostic), tolerance 1e-6, a decomposition every generation.
+//! Box penalty 0.01 (as the diagnostic), tolerance 1e-6, a decomposition every generation;
+//! `ACTIVE=1` turns on the active (negative) weights (`CmaesConfig::active`).
 //! During a `fresh` / `freshspread` run the search's mean is scored every 1000 episodes on the
 //! validation courses 20 001–20 010 (mean told cost; `MISSING_HOP` overrides the cost per
 //! missing hop) and the best is printed as the run's "kept by validation" row (early
@@ -131,7 +132,13 @@ fn main() {
             }
             s => panic!("start {s}"),
         };
-        let label = format!("library {} σ₀ {sigma0} {} seed {seed}", f[0], f[3]);
+        let active = std::env::var("ACTIVE").is_ok_and(|v| v == "1");
+        let label = format!(
+            "library {} σ₀ {sigma0} {}{} seed {seed}",
+            f[0],
+            f[3],
+            if active { " active" } else { "" }
+        );
         let refine_n: u64 = std::env::var("REFINE_N").map_or(5, |v| v.parse().unwrap());
         let refine: Vec<u64> = (30_001..30_001 + refine_n).collect();
         let courses: &[u64] = if cost == Cost::Shaped3 {
@@ -142,7 +149,8 @@ fn main() {
             &[1001]
         };
         let evaluations = budget.div_ceil(courses.len() as u32);
-        let cma = hopper_task::fresh_cmaes(start, sigma0, evaluations).expect("valid config");
+        let cma =
+            hopper_task::fresh_cmaes(start, sigma0, evaluations, active).expect("valid config");
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
         let t = Instant::now();
         let report = |cma: &Cmaes<P, LAMBDA>, episodes: u32| {

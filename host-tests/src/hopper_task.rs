@@ -583,8 +583,15 @@ pub const FRESH_COURSES: u64 = 100_000;
 
 /// [`FreshCmaes`] from `start` with σ₀ = `sigma0` (relative to each half-range of
 /// [`bounds`]), box penalty 0.01 (≈ the cost scale: a sample 0.1 half-range outside the box
-/// costs 10⁻⁴), tolerance 10⁻⁶ and a budget of `evaluations` (the CMA-ES examples' settings).
-pub fn fresh_cmaes(start: Vector<P>, sigma0: f32, evaluations: u32) -> Result<FreshCmaes, Error> {
+/// costs 10⁻⁴), tolerance 10⁻⁶, a budget of `evaluations` (the CMA-ES examples' settings),
+/// and active weights if `active` ([`CmaesConfig::active`]: off in the runs of sessions 2
+/// and 3, on in session 4's; docs/cmaes.md).
+pub fn fresh_cmaes(
+    start: Vector<P>,
+    sigma0: f32,
+    evaluations: u32,
+    active: bool,
+) -> Result<FreshCmaes, Error> {
     Cmaes::try_new(
         bounds(),
         start,
@@ -593,6 +600,7 @@ pub fn fresh_cmaes(start: Vector<P>, sigma0: f32, evaluations: u32) -> Result<Fr
             penalty: 0.01,
             tolerance: 1e-6,
             max_evaluations: evaluations,
+            active,
             ..CmaesConfig::DEFAULT
         },
     )

@@ -142,7 +142,7 @@ fn fresh_course_learning_is_the_adapters_run_on_any_number_of_threads() {
     const EPISODES: u32 = 35;
     let sequential = {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
-        let cma = fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES).unwrap();
+        let cma = fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES, true).unwrap();
         let mut adapter = hopper_task::adapter_with(
             cma,
             EPISODES,
@@ -159,7 +159,7 @@ fn fresh_course_learning_is_the_adapters_run_on_any_number_of_threads() {
     };
     let parallel = |threads| {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
-        let cma = fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES).unwrap();
+        let cma = fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES, true).unwrap();
         let mut told = 0;
         let cma = learn_on_fresh_courses(
             cma,
@@ -194,7 +194,7 @@ fn early_stopping_keeps_the_best_scored_mean_and_leaves_the_search_alone() {
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
     let mut scored = Vec::new();
     let kept = hopper_task::learn_with_validation(
-        fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES).unwrap(),
+        fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES, true).unwrap(),
         EPISODES,
         apex,
         &mut rng,
@@ -209,7 +209,7 @@ fn early_stopping_keeps_the_best_scored_mean_and_leaves_the_search_alone() {
     .unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
     let plain = learn_on_fresh_courses(
-        fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES).unwrap(),
+        fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES, true).unwrap(),
         EPISODES,
         apex,
         &mut rng,
