@@ -773,9 +773,10 @@ mod tests {
         hit
     }
 
-    /// Checks the strategy parameters against table 1 of the tutorial computed in f64 for
-    /// n = 31, λ = 14 (the hopper) and n = 3, λ = 2 (the smallest population: μ = 1,
-    /// c_μ = 0), and the default population sizes 4 + ⌊3 ln n⌋.
+    /// Checks the strategy parameters (with the active weights) against table 1 and
+    /// eq. 50–53 of the tutorial computed in f64 for n = 31, λ = 14 (the hopper) and n = 3,
+    /// λ = 2 (the smallest population: μ = 1, c_μ = 0, no active weights), and the default
+    /// population sizes 4 + ⌊3 ln n⌋.
     #[test]
     fn constants_follow_the_tutorial() {
         fn check<const L: usize>(n: usize) {
@@ -811,6 +812,22 @@ mod tests {
             assert!(close(k.c_1, c_1));
             assert!(close(k.c_mu, c_mu), "{} {c_mu}", k.c_mu);
             assert!(close(k.chi_n, chi));
+            // The active weights (eq. 50–53), none when c_μ = 0.
+            let raw: std::vec::Vec<f64> = (mu + 1..=L)
+                .map(|i| ((L as f64 + 1.0) / 2.0).ln() - (i as f64).ln())
+                .collect();
+            let neg_sum: f64 = raw.iter().map(|r| -r).sum();
+            let mu_eff_neg = neg_sum * neg_sum / raw.iter().map(|r| r * r).sum::<f64>();
+            let alpha = (1.0 + c_1 / c_mu)
+                .min(1.0 + 2.0 * mu_eff_neg / (mu_eff + 2.0))
+                .min((1.0 - c_1 - c_mu) / (nf * c_mu));
+            for i in 0..L {
+                let expected = match i.checked_sub(mu) {
+                    Some(j) if c_mu > 0.0 => alpha * raw[j] / neg_sum,
+                    _ => 0.0,
+                };
+                assert!(close(k.negative[i], expected), "negative w[{i}]");
+            }
         }
         check::<14>(31);
         check::<2>(3);
