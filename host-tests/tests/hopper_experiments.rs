@@ -15,8 +15,9 @@
 //! `hopper_task::learn_on_fresh_courses`, 12 000 episodes per run: not run here), which runs
 //! a generation's episodes on several threads, is the sequential run through a learning
 //! `Adapter`, bit for bit. That learner reaches the paper's ≈ 1 cm on about one run in four
-//! (12 000 episodes) to one in two (20 000); no test asserts it (a seed that happens to pass
-//! would break with any change to the random streams).
+//! (12 000 episodes) to one in two (20 000), with active weights on four runs in sixteen at
+//! 12 000 (docs/cmaes.md, session 4); no test asserts it (a seed that happens to pass would break
+//! with any change to the random streams).
 
 #![cfg(not(debug_assertions))]
 

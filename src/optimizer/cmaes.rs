@@ -84,8 +84,9 @@
 //! * **Active weights are optional** (`active`, off by default, so that earlier figures
 //!   stay valid; the tutorial's default is on). On a rotated 10-D discus (one axis 100×
 //!   thinner) they reach 10⁻⁶ with 56 % of the evaluations (unit test
-//!   `active_weights_learn_a_thin_axis_sooner`); on the hopping leg, whose learned optima
-//!   lie against cliffs, see docs/cmaes.md (session 4).
+//!   `active_weights_learn_a_thin_axis_sooner`). On the hopping leg they did not raise the
+//!   share of learning runs that reach the paper's apex variation (4 of 16 seeds, against 2
+//!   of 8 without; docs/cmaes.md, session 4).
 //! * **Ties** in the ranking rank in the order told.
 //! * **Normal draws.** Marsaglia's polar method in f32 ([`normal_pair_f32`]), truncated at
 //!   radius 7.99.
@@ -101,10 +102,11 @@
 //! variant of CMA-ES (no decomposition at all); not done.
 //!
 //! # Sizes
-//! About 4·(2N² + (L + 12)·N) bytes: C and B (N × N each), room for the μ ≤ L best draws
-//! of a generation, the paths, mean, scales and box: `size_of` is 11 024 B for
-//! `Cmaes<31, 14>` and 4 312 B for `Cmaes<18, 10>` (`cargo bench -p host-tests --bench
-//! cmaes`). N ≤ 127: nalgebra's
+//! About 4·(2N² + (L + 12)·N + 3L) bytes: C and B (N × N each), room for the L draws of a
+//! generation (μ of them used without `active`), the paths, mean, scales, box and weights:
+//! `size_of` is 11 088 B for `Cmaes<31, 14>` and 4 352 B for `Cmaes<18, 10>` (`cargo bench
+//! -p host-tests --bench cmaes`; 64 and 40 B more than before the active weights). N ≤ 127:
+//! nalgebra's
 //! decomposition needs `Const<N>: DimSub<U1>`, which it implements up to 127 (the
 //! [`SymmetricEigenSize`] bound on the impls, met by every such N without naming it).
 
