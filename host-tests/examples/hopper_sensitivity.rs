@@ -16,10 +16,7 @@
 //! box is not run (`-`). docs/experiments.md (fifth round) reads the output.
 
 use ctrl_adapt::optimizer::Vector;
-use host_tests::hopper::NominalHopping;
-use host_tests::hopper_task::{self, K, P, evaluate_with, plant, told_cost};
-use rand_core::SeedableRng;
-use rand_xoshiro::Xoshiro256PlusPlus;
+use host_tests::hopper_task::{self, K, P, told_cost};
 
 /// The courses every point is scored on.
 const COURSES: std::ops::Range<u64> = 300_000..300_010;
@@ -51,16 +48,8 @@ fn name(i: usize) -> String {
 
 /// Apex heights (m, 3 decimals) of `theta` on course `seed`, and whether it collapsed.
 fn apexes(theta: Vector<P>, seed: u64) -> String {
-    let mut unused = Xoshiro256PlusPlus::seed_from_u64(0);
-    let e = evaluate_with(
-        theta,
-        &mut plant(true, seed),
-        &mut unused,
-        false,
-        &NominalHopping::TUNED,
-        hopper_task::spread_apex_config(),
-    )
-    .expect("episode");
+    let e =
+        hopper_task::episode_on(theta, seed, hopper_task::spread_apex_config()).expect("episode");
     let a: Vec<_> = e.apexes.iter().map(|h| format!("{h:.3}")).collect();
     format!(
         "{}{}",

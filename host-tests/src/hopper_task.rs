@@ -498,19 +498,25 @@ pub fn evaluate_with<G: RngCore>(
     run_episode(&mut deployed, hopper, rng, record)
 }
 
-/// The cost a learning [`Adapter`] (cost `apex`) tells for one episode of `theta` on the
-/// course of `seed`: the episode's cost, or the failure cost if it failed (collapse,
-/// non-finite cost, faulty ticks).
-pub fn told_cost(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<f32, Error> {
+/// One deployed episode of `theta` (nominal gait [`NominalHopping::TUNED`], cost `apex`) on
+/// the block course of `seed`, not recorded.
+pub fn episode_on(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<HopEpisode, Error> {
     let mut unused = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0);
-    let e = evaluate_with(
+    evaluate_with(
         theta,
         &mut plant(true, seed),
         &mut unused,
         false,
         &NominalHopping::TUNED,
         apex,
-    )?;
+    )
+}
+
+/// The cost a learning [`Adapter`] (cost `apex`) tells for one episode of `theta` on the
+/// course of `seed` ([`episode_on`]): the episode's cost, or the failure cost if it failed
+/// (collapse, non-finite cost, faulty ticks).
+pub fn told_cost(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<f32, Error> {
+    let e = episode_on(theta, seed, apex)?;
     Ok(if e.report.failed {
         adapter_config(1).failure_cost
     } else {
