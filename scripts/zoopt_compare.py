@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Runs ZOOpt's SRACOS on the SRACOS paper's synthetic set-up, for comparison with
-`cargo bench -p host-tests --bench sracos`. Not part of CI.
+`cargo bench -p experiments --bench sracos`. Not part of CI.
 
 Set-up (Hu, Qian & Yu 2017): Sphere and Ackley shifted to 0.2 on [-1, 1]^n, budget 20n,
 ZOOpt's defaults (sequential RACOS, WR, budget-based set sizes, automatic uncertain bits),

@@ -2,7 +2,7 @@
 //! its progress (the former main job, kept for the README's Rosenbrock figure):
 //!
 //! ```text
-//! cargo run --release -p host-tests --example rosenbrock
+//! cargo run --release -p experiments --example rosenbrock
 //! ```
 
 use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Vector};

@@ -1,7 +1,7 @@
 //! SRACOS against batch RACOS and uniform random search on the SRACOS paper's synthetic
 //! set-up, in the paper's table format, plus the optimizers' own cost on the host. Prints;
 //! asserts nothing (shared, noisy machines). Run with
-//! `cargo bench -p host-tests --bench sracos`; compare with `scripts/zoopt_compare.py`.
+//! `cargo bench -p experiments --bench sracos`; compare with `scripts/zoopt_compare.py`.
 //!
 //! * Quality: Sphere and Ackley shifted to 0.2 on [−1, 1]^n, budget 20n, mean ± (population)
 //!   std of the best value over 15 seeded runs (seeds 1..=15), n ∈ {10, 100, 1000}; set sizes

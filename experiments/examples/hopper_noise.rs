@@ -5,9 +5,9 @@
 //! points.
 //!
 //! ```text
-//! cargo run --release -p host-tests --example hopper_noise                       # θ = 0 (the initial policy)
-//! CMAES_THETA='<mean printed by hopper_cmaes_lib>' cargo run --release -p host-tests --example hopper_noise
-//! cargo run --release -p host-tests --example hopper_noise -- 0.5                # blocks redrawn at half the apexes
+//! cargo run --release -p experiments --example hopper_noise                       # θ = 0 (the initial policy)
+//! CMAES_THETA='<mean printed by hopper_cmaes_lib>' cargo run --release -p experiments --example hopper_noise
+//! cargo run --release -p experiments --example hopper_noise -- 0.5                # blocks redrawn at half the apexes
 //! ```
 //!
 //! The optional argument is the plant's probability of redrawing the ground at an apex (the
@@ -15,7 +15,7 @@
 
 use ctrl_adapt::optimizer::Vector;
 use host_tests::hopper::HopperConfig;
-use host_tests::hopper_task::{self, P, evaluate, plant_for};
+use experiments::hopping::{self, P, evaluate, plant_for};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -27,7 +27,7 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
 }
 
 fn main() {
-    let theta = hopper_task::theta_from_env::<f32>()
+    let theta = hopping::theta_from_env::<f32>()
         .map_or_else(Vector::<P>::zeros, |v| Vector::<P>::from_column_slice(&v));
     let change_probability: f64 = std::env::args()
         .nth(1)

@@ -3,9 +3,9 @@
 //! ScarlETH is built around let the clock-driven policy reject the unperceived blocks better?
 //!
 //! ```text
-//! cargo run --release -p host-tests --example hopper_sea              # the SEA leg (≈ 1 min)
-//! cargo run --release -p host-tests --example hopper_sea -- --tune    # + retune its nominal
-//! cargo run --release -p host-tests --example hopper_sea -- --variations   # + k, f_τ sweep
+//! cargo run --release -p experiments --example hopper_sea              # the SEA leg (≈ 1 min)
+//! cargo run --release -p experiments --example hopper_sea -- --tune    # + retune its nominal
+//! cargo run --release -p experiments --example hopper_sea -- --variations   # + k, f_τ sweep
 //! ```
 //!
 //! For each leg:
@@ -14,7 +14,7 @@
 //!    `tests/hopper_tuning.rs` on flat ground (grid, then `CoordinateSearch` over the 6
 //!    parameters, 600 episodes of 8 s), with the motor-limit steps counted as violations too;
 //! 2. the protocol of `tests/hopper_experiments.rs` around that nominal
-//!    (`hopper_task::controller_for`): 400 coordinate-search episodes of 12 s on the training
+//!    (`hopping::controller_for`): 400 coordinate-search episodes of 12 s on the training
 //!    course (block sequence of seed 1001, replayed), optimizer seed 1; the initial (θ = 0)
 //!    and learned policies evaluated on the 5 unseen courses 10 001–10 005 (rng seed 2).
 //!
@@ -24,7 +24,7 @@
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
 use host_tests::hopper::{HopperConfig, NominalHopping, SeaConfig};
-use host_tests::hopper_task::{
+use experiments::hopping::{
     self, HopEpisode, LEARNING_EPISODES, P, TRAINING_SEED, coordinate_search, evaluate_for,
     plant_for, run_episode,
 };
@@ -119,7 +119,7 @@ fn apex_by_block(episodes: &[HopEpisode], heights: &[f64]) -> String {
                     e.apexes
                         .iter()
                         .zip(&e.grounds)
-                        .skip(hopper_task::TRANSIENT_HOPS)
+                        .skip(hopping::TRANSIENT_HOPS)
                         .filter(|(_, g)| (**g - h).abs() < 1e-9)
                         .map(|(a, _)| *a)
                 })
@@ -137,7 +137,7 @@ fn experiment(leg: HopperConfig, nominal: &NominalHopping) {
     let training = || plant_for(leg, true, TRAINING_SEED);
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
     let search = coordinate_search(Vector::zeros(), LEARNING_EPISODES).expect("valid search");
-    let mut adapter = hopper_task::adapter_for(search, LEARNING_EPISODES, Vector::zeros(), nominal)
+    let mut adapter = hopping::adapter_for(search, LEARNING_EPISODES, Vector::zeros(), nominal)
         .expect("valid adapter");
     let mut first = f32::NAN;
     for episode in 0..LEARNING_EPISODES {

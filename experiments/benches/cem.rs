@@ -1,5 +1,5 @@
 //! `DiagonalCem` figures, printed as Markdown tables (asserts nothing; run with
-//! `cargo bench -p host-tests --bench cem`):
+//! `cargo bench -p experiments --bench cem`):
 //!
 //! 1. learning curves on the via-point arm task (Stulp & Sigaud 2012, section 3.1): the
 //!    noise-free cost per update for each weighting and initial exploration λ_init, with and

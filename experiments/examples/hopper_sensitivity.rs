@@ -1,5 +1,5 @@
 //! How sharp the learned optima are: the spread-weighted cost
-//! ([`hopper_task::spread_apex_config`], the cost the fresh-course CMA-ES learns on) of a
+//! ([`hopping::spread_apex_config`], the cost the fresh-course CMA-ES learns on) of a
 //! fixed policy θ and of θ with one parameter moved by ± `step` of its half-range, each the
 //! mean told cost over 10 courses it was not learned on (seeds 300 000 …, the same 10 for
 //! every point, so the course-to-course noise cancels in the comparison), with the ratio of
@@ -7,8 +7,8 @@
 //! the moved θ on the course where the move costs most.
 //!
 //! ```text
-//! CMAES_THETA='<mean printed by hopper_cmaes_lib>' cargo run --release -p host-tests --example hopper_sensitivity [-- STEP]
-//! cargo run --release -p host-tests --example hopper_sensitivity -- 0.05     # θ = 0, the initial policy
+//! CMAES_THETA='<mean printed by hopper_cmaes_lib>' cargo run --release -p experiments --example hopper_sensitivity [-- STEP]
+//! cargo run --release -p experiments --example hopper_sensitivity -- 0.05     # θ = 0, the initial policy
 //! ```
 //!
 //! `STEP` defaults to 0.01 (0.005 rad of a knee-reference weight, 0.28 N·m/rad of a stiffness
@@ -16,14 +16,14 @@
 //! box is not run (`-`). docs/experiments.md (fifth round) reads the output.
 
 use ctrl_adapt::optimizer::Vector;
-use host_tests::hopper_task::{self, K, P, told_cost};
+use experiments::hopping::{self, K, P, told_cost};
 
 /// The courses every point is scored on.
 const COURSES: std::ops::Range<u64> = 300_000..300_010;
 
 /// The mean told cost of `theta` over [`COURSES`], one thread per course.
 fn cost(theta: Vector<P>) -> f64 {
-    let apex = hopper_task::spread_apex_config();
+    let apex = hopping::spread_apex_config();
     std::thread::scope(|s| {
         let runs: Vec<_> = COURSES
             .map(|seed| s.spawn(move || told_cost(theta, seed, apex).expect("episode")))
@@ -49,7 +49,7 @@ fn name(i: usize) -> String {
 /// Apex heights (m, 3 decimals) of `theta` on course `seed`, and whether it collapsed.
 fn apexes(theta: Vector<P>, seed: u64) -> String {
     let e =
-        hopper_task::episode_on(theta, seed, hopper_task::spread_apex_config()).expect("episode");
+        hopping::episode_on(theta, seed, hopping::spread_apex_config()).expect("episode");
     let a: Vec<_> = e.apexes.iter().map(|h| format!("{h:.3}")).collect();
     format!(
         "{}{}",
@@ -59,12 +59,12 @@ fn apexes(theta: Vector<P>, seed: u64) -> String {
 }
 
 fn main() {
-    let theta = hopper_task::theta_from_env::<f32>()
+    let theta = hopping::theta_from_env::<f32>()
         .map_or_else(Vector::<P>::zeros, |v| Vector::<P>::from_column_slice(&v));
     let step: f32 = std::env::args()
         .nth(1)
         .map_or(0.01, |s| s.parse().expect("STEP"));
-    let half = *hopper_task::bounds().upper();
+    let half = *hopping::bounds().upper();
     let base = cost(theta);
     println!("θ's cost {base:.3e} (mean over courses {COURSES:?}); step {step} of each half-range");
     println!("| parameter | θ | cost at − step | cost at + step | worse side / θ |");
@@ -103,7 +103,7 @@ fn main() {
         name(i)
     );
     // The course where the move costs most, and what the leg did there.
-    let apex = hopper_task::spread_apex_config();
+    let apex = hopping::spread_apex_config();
     let worst = COURSES
         .map(|seed| (told_cost(moved, seed, apex).expect("episode"), seed))
         .fold((f32::NEG_INFINITY, 0), |a, b| if b.0 > a.0 { b } else { a });

@@ -1,5 +1,5 @@
 //! `Cmaes` overhead, printed as a Markdown table (asserts nothing; run with
-//! `cargo bench -p host-tests --bench cmaes`): host time per ask+tell pair (the objective
+//! `cargo bench -p experiments --bench cmaes`): host time per ask+tell pair (the objective
 //! excluded; the eigendecomposition after every λ-th tell included, amortised) and
 //! `size_of` the optimizer, for the AUV's N = 18 and the hopper's N = 31.
 //!

@@ -2,7 +2,7 @@
 //! policy does, hop to hop"):
 //!
 //! ```text
-//! cargo run --release -p host-tests --example hopper_regression   # ≈ 15 s
+//! cargo run --release -p experiments --example hopper_regression   # ≈ 15 s
 //! ```
 //!
 //! Learns as `tests/hopper_experiments.rs` does (coordinate search, 400 episodes on the
@@ -13,7 +13,7 @@
 //! residual and the mean apex for each pair (g_k, g_{k−1}).
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
-use host_tests::hopper_task::{
+use experiments::hopping::{
     self, LEARNING_EPISODES, TRANSIENT_HOPS, coordinate_search, evaluate, plant, run_episode,
     training_course,
 };
@@ -32,7 +32,7 @@ fn main() {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
     let search = coordinate_search(Vector::zeros(), LEARNING_EPISODES).expect("valid search");
     let mut adapter =
-        hopper_task::adapter(search, LEARNING_EPISODES, Vector::zeros()).expect("valid adapter");
+        hopping::adapter(search, LEARNING_EPISODES, Vector::zeros()).expect("valid adapter");
     for _ in 0..LEARNING_EPISODES {
         run_episode(&mut adapter, &mut training_course(), &mut rng, false).expect("episode");
     }
@@ -78,8 +78,8 @@ fn main() {
         x[4],
         rms * 100.0
     );
-    for g in hopper_task::plant(true, 0).config().ground_heights {
-        for g_prev in hopper_task::plant(true, 0).config().ground_heights {
+    for g in hopping::plant(true, 0).config().ground_heights {
+        for g_prev in hopping::plant(true, 0).config().ground_heights {
             let apexes: Vec<f64> = hops
                 .iter()
                 .filter(|h| h[1] == *g && h[2] == *g_prev)

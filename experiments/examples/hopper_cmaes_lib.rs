@@ -2,7 +2,7 @@
 //! that it reproduces the host-only f64 diagnostic `hopper_cmaes.rs` (docs/cmaes.md).
 //!
 //! ```text
-//! cargo run --release -p host-tests --example hopper_cmaes_lib -- [RUN ...]
+//! cargo run --release -p experiments --example hopper_cmaes_lib -- [RUN ...]
 //! ```
 //!
 //! Each RUN is `start:sigma0:budget:cost:seed`, e.g. `zero:0.15:6000:plain:1` (the default):
@@ -10,7 +10,7 @@
 //! * `sigma0`: initial step size relative to the box's half-widths;
 //! * `budget`: episodes;
 //! * `cost`: `plain` — the episodes run through the library's [`Adapter`]
-//!   (`hopper_task::adapter`, `run_episode` on the training course 1001; the adapter asks
+//!   (`hopping::adapter`, `run_episode` on the training course 1001; the adapter asks
 //!   the optimizer and tells it the `ApexHeightCost`, or the failure cost on a collapse);
 //!   `shaped` / `shaped3` — the optimizer driven directly (ask, `evaluate`, tell) with the
 //!   shaped cost of the diagnostic (apex term without the first 3 apexes + 10 · spread², on
@@ -19,8 +19,8 @@
 //!   share it: common random numbers within the ranking) or every episode (seeds
 //!   100 000 + generation or + episode); the rows then report the search's mean, not its
 //!   best told θ (a lucky draw on an easy course); `freshspread` — a new course every
-//!   episode with the spread-weighted cost `hopper_task::spread_apex_config`, through
-//!   `hopper_task::learn_on_fresh_courses`, its episodes on all cores, or `THREADS`);
+//!   episode with the spread-weighted cost `hopping::spread_apex_config`, through
+//!   `hopping::learn_on_fresh_courses`, its episodes on all cores, or `THREADS`);
 //!   `refine` — the optimizer driven directly with the spread-weighted cost averaged over
 //!   a fixed set of `REFINE_N` courses (default 5, seeds 30 001 …), usually from `env`;
 //! * `seed`: the RNG seed of the optimizer's draws.
@@ -40,12 +40,12 @@
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::{Cmaes, Optimizer, Status, Vector};
-use host_tests::hopper_task::{self, HopEpisode, P, evaluate, plant, run_episode, training_course};
+use experiments::hopping::{self, HopEpisode, P, evaluate, plant, run_episode, training_course};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 /// λ = 4 + ⌊3 ln 31⌋.
-const LAMBDA: usize = hopper_task::FRESH_LAMBDA;
+const LAMBDA: usize = hopping::FRESH_LAMBDA;
 
 /// Episodes at which the best-so-far θ is reported.
 const CHECKPOINTS: &[u32] = &[1000, 2000, 4000, 6000, 8000, 10_000, 12_000, 14_000, 16_000];
@@ -62,8 +62,8 @@ enum Cost {
     Generation,
     /// Plain cost, a new course every episode: seed 100 000 + episode.
     Fresh,
-    /// The spread-weighted cost of `hopper_task::spread_apex_config`, a new course every
-    /// episode (`hopper_task::learn_on_fresh_courses`, as `tests/hopper_experiments.rs`).
+    /// The spread-weighted cost of `hopping::spread_apex_config`, a new course every
+    /// episode (`hopping::learn_on_fresh_courses`, as `tests/hopper_experiments.rs`).
     FreshSpread,
     /// The spread-weighted cost averaged over a fixed set of `REFINE_N` (default 5) courses,
     /// seeds 30 001 …: a refinement with common random numbers, from `env`.
@@ -82,9 +82,9 @@ fn shaped(e: &HopEpisode) -> f64 {
     mean_sq(e.apexes.get(3..).unwrap_or(&[])) + rest + 10.0 * e.apex_spread().powi(2)
 }
 
-/// One row of the table ([`hopper_task::figures_row`]).
+/// One row of the table ([`hopping::figures_row`]).
 fn row(label: &str, episodes: u32, cost: f32, theta: Vector<P>, extra: &str) {
-    let row = hopper_task::figures_row(label, episodes as u64, f64::from(cost), theta, extra);
+    let row = hopping::figures_row(label, episodes as u64, f64::from(cost), theta, extra);
     println!("{}", row.expect("episode"));
 }
 
@@ -125,7 +125,7 @@ fn main() {
             "zero" => Vector::<P>::zeros(),
             "env" => {
                 let theta: Vec<f32> =
-                    hopper_task::theta_from_env().expect("CMAES_THETA is not set");
+                    hopping::theta_from_env().expect("CMAES_THETA is not set");
                 let theta = Vector::<P>::from_column_slice(&theta);
                 row("given θ (start)", 0, f32::NAN, theta, "");
                 theta
@@ -150,7 +150,7 @@ fn main() {
         };
         let evaluations = budget.div_ceil(courses.len() as u32);
         let cma =
-            hopper_task::fresh_cmaes(start, sigma0, evaluations, active).expect("valid config");
+            hopping::fresh_cmaes(start, sigma0, evaluations, active).expect("valid config");
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
         let t = Instant::now();
         let report = |cma: &Cmaes<P, LAMBDA>, episodes: u32| {
@@ -183,18 +183,18 @@ fn main() {
         };
         let cma = if matches!(cost, Cost::Fresh | Cost::FreshSpread) {
             let mut apex = if cost == Cost::Fresh {
-                hopper_task::apex_config()
+                hopping::apex_config()
             } else {
-                hopper_task::spread_apex_config()
+                hopping::spread_apex_config()
             };
             if let Ok(m) = std::env::var("MISSING_HOP") {
                 apex.missing_hop_cost = m.parse().expect("MISSING_HOP");
             }
             let threads = std::env::var("THREADS")
-                .map_or_else(|_| hopper_task::threads(), |t| t.parse().expect("THREADS"));
+                .map_or_else(|_| hopping::threads(), |t| t.parse().expect("THREADS"));
             // Early stopping: every 1000 episodes the mean is scored on the validation
             // courses (10 episodes more); the best is what a robot would keep.
-            let kept = hopper_task::learn_with_validation(
+            let kept = hopping::learn_with_validation(
                 cma,
                 budget,
                 apex,
@@ -214,7 +214,7 @@ fn main() {
             chosen.push((kept.validation_cost, format!("{label} at {}", kept.episode)));
             kept.cma
         } else if matches!(cost, Cost::Plain | Cost::Generation) {
-            let mut adapter = hopper_task::adapter(cma, budget, start).expect("adapter");
+            let mut adapter = hopping::adapter(cma, budget, start).expect("adapter");
             for k in 0..u64::from(budget) {
                 let mut course = match cost {
                     Cost::Generation => plant(true, 100_000 + k / LAMBDA as u64),
@@ -236,7 +236,7 @@ fn main() {
                     .map(|&s| {
                         if cost == Cost::Refine {
                             return f64::from(
-                                hopper_task::told_cost(theta, s, hopper_task::spread_apex_config())
+                                hopping::told_cost(theta, s, hopping::spread_apex_config())
                                     .unwrap(),
                             );
                         }

@@ -4,7 +4,7 @@
 //! changes. Release only (compiled out of debug test builds):
 //!
 //! ```text
-//! cargo test --release -p host-tests --test sweep -- --nocapture
+//! cargo test --release -p experiments --test sweep -- --nocapture
 //! ```
 //!
 //! * **AUV**: 300 episodes on the "real" plant (0.6 m/s current, disturbances seeded by the

@@ -4,7 +4,7 @@
 //! `cargo test` skips it),
 //!
 //! ```text
-//! cargo test --release -p host-tests --test auv_experiments -- --nocapture
+//! cargo test --release -p experiments --test auv_experiments -- --nocapture
 //! ```
 //!
 //! Each seed s fixes the disturbances of the "real" plant (0.6 m/s, seed s), of the

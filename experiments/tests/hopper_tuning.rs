@@ -5,7 +5,7 @@
 //! release builds only (debug `cargo test` skips it) and CI runs it in release:
 //!
 //! ```text
-//! cargo test --release -p host-tests --test hopper_tuning -- --nocapture
+//! cargo test --release -p experiments --test hopper_tuning -- --nocapture
 //! ```
 //!
 //! `TUNED` is the result rounded to two significant decimals.

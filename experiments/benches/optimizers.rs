@@ -1,6 +1,6 @@
 //! Optimizer overhead on the host: time per ask+tell pair (the objective excluded) and the
 //! size of the optimizer state. Prints a table; asserts nothing about speed (these machines
-//! are shared and noisy). Run with `cargo bench -p host-tests`.
+//! are shared and noisy). Run with `cargo bench -p experiments`.
 //!
 //! Method: one run on a shifted sphere records the cost sequence; the timed loop replays it
 //! into fresh optimizers (the search is deterministic given the costs), so only `ask` and

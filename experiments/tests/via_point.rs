@@ -3,7 +3,7 @@
 //! results table (`-- --nocapture`).
 //!
 //! The figure-6 experiment (30 sessions of 4,000 episodes) runs only in release:
-//! `cargo test --release -p host-tests --test via_point -- --nocapture`.
+//! `cargo test --release -p experiments --test via_point -- --nocapture`.
 
 use ctrl_adapt::optimizer::{CemConfig, Weighting};
 use host_tests::arm::{self, LINKS, Session, VIA_WEIGHT, ViaPointArm, end_effector};
@@ -112,7 +112,7 @@ fn every_weighting_learns_the_via_point_task() {
 ///   every λ_init converges to the same magnitude; these seeds: 605 to 848).
 ///
 /// Heavy (about a minute in debug): compiled in release only; CI runs
-/// `cargo test --release -p host-tests --test via_point`.
+/// `cargo test --release -p experiments --test via_point`.
 #[test]
 #[cfg(not(debug_assertions))]
 fn covariance_adaptation_makes_learning_insensitive_to_initial_exploration() {

@@ -2,7 +2,7 @@
 //! did NOT reach it, kept to reproduce the figures of docs/experiments.md ("What was tried"):
 //!
 //! ```text
-//! cargo run --release -p host-tests --example hopper_attempts   # ≈ 4–6 min
+//! cargo run --release -p experiments --example hopper_attempts   # ≈ 4–6 min
 //! ```
 //!
 //! A chain of the library's optimizers, each started from the previous best θ, driven through
@@ -21,8 +21,8 @@
 //! the test (seeds 10 001–10 005) and 10 more (30 001–30 010).
 
 use ctrl_adapt::optimizer::{CemConfig, DiagonalCem, Optimizer, Status, Vector, Weighting};
-use host_tests::hopper_task::spreads_on;
-use host_tests::hopper_task::{self, HopEpisode, P, evaluate, plant};
+use experiments::hopping::spreads_on;
+use experiments::hopping::{self, HopEpisode, P, evaluate, plant};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -110,14 +110,14 @@ fn report(stage: &str, theta: Vector<P>) {
 fn main() {
     let t = std::time::Instant::now();
     let theta = learn(
-        hopper_task::coordinate_search(Vector::zeros(), 400).expect("search"),
+        hopping::coordinate_search(Vector::zeros(), 400).expect("search"),
         400,
         &[1001],
         PLAIN,
     );
     report("1. coordinate search, 400, plain cost, course 1001", theta);
     let theta = learn(
-        hopper_task::coordinate_search(theta, 1500).expect("search"),
+        hopping::coordinate_search(theta, 1500).expect("search"),
         1500,
         &[1001, 1002, 1003],
         SHAPED,
@@ -126,7 +126,7 @@ fn main() {
         "2. + coordinate search, 1500 × 3 courses, shaped cost",
         theta,
     );
-    let sigma = Vector::<P>::from_fn(|i, _| [0.01, 2.0, 0.1, 5e-4][(i / hopper_task::K).min(3)]);
+    let sigma = Vector::<P>::from_fn(|i, _| [0.01, 2.0, 0.1, 5e-4][(i / hopping::K).min(3)]);
     let config = CemConfig {
         weighting: Weighting::PiBb { h: 10.0 },
         initial_variance: 0.0,
@@ -136,7 +136,7 @@ fn main() {
         ..CemConfig::DEFAULT
     };
     let cem = DiagonalCem::<P, 20, 20>::try_with_variances(
-        hopper_task::bounds(),
+        hopping::bounds(),
         theta,
         sigma.component_mul(&sigma),
         config,

@@ -4,7 +4,7 @@
 //! builds only (debug `cargo test` skips it),
 //!
 //! ```text
-//! cargo test --release -p host-tests --test hopper_experiments -- --nocapture
+//! cargo test --release -p experiments --test hopper_experiments -- --nocapture
 //! ```
 //!
 //! Learning: 400 episodes of 12 s, every one on the same training course (the block
@@ -12,7 +12,7 @@
 //! learned policy on 5 courses never used in learning (seeds 10 001–10 005).
 //!
 //! Also checks that the fresh-course CMA-ES learner of docs/experiments.md (fourth round;
-//! `hopper_task::learn_on_fresh_courses`, 12 000 episodes per run: not run here), which runs
+//! `hopping::learn_on_fresh_courses`, 12 000 episodes per run: not run here), which runs
 //! a generation's episodes on several threads, is the sequential run through a learning
 //! `Adapter`, bit for bit. That learner reaches the paper's ≈ 1 cm on about one run in four
 //! (12 000 episodes) to one in two (20 000), with active weights on four runs in sixteen at
@@ -24,7 +24,7 @@
 use std::sync::OnceLock;
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
-use host_tests::hopper_task::{
+use experiments::hopping::{
     self, HopEpisode, LEARNING_EPISODES, P, coordinate_search, evaluate, fresh_cmaes,
     learn_on_fresh_courses, plant, run_episode, spread_apex_config, training_course,
 };
@@ -48,7 +48,7 @@ fn learned() -> &'static Learned {
     LEARNED.get_or_init(|| {
         let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
         let search = coordinate_search(Vector::zeros(), LEARNING_EPISODES).unwrap();
-        let mut adapter = hopper_task::adapter(search, LEARNING_EPISODES, Vector::zeros()).unwrap();
+        let mut adapter = hopping::adapter(search, LEARNING_EPISODES, Vector::zeros()).unwrap();
         let costs: Vec<f32> = (0..LEARNING_EPISODES)
             .map(|_| {
                 let e = run_episode(&mut adapter, &mut training_course(), &mut rng, false);
@@ -144,7 +144,7 @@ fn fresh_course_learning_is_the_adapters_run_on_any_number_of_threads() {
     let sequential = {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
         let cma = fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES, true).unwrap();
-        let mut adapter = hopper_task::adapter_with(
+        let mut adapter = hopping::adapter_with(
             cma,
             EPISODES,
             Vector::zeros(),
@@ -153,7 +153,7 @@ fn fresh_course_learning_is_the_adapters_run_on_any_number_of_threads() {
         )
         .unwrap();
         for k in 0..EPISODES {
-            let mut course = plant(true, hopper_task::FRESH_COURSES + u64::from(k));
+            let mut course = plant(true, hopping::FRESH_COURSES + u64::from(k));
             run_episode(&mut adapter, &mut course, &mut rng, false).unwrap();
         }
         adapter.optimizer().clone()
@@ -194,7 +194,7 @@ fn early_stopping_keeps_the_best_scored_mean_and_leaves_the_search_alone() {
     let apex = spread_apex_config();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
     let mut scored = Vec::new();
-    let kept = hopper_task::learn_with_validation(
+    let kept = hopping::learn_with_validation(
         fresh_cmaes(Vector::zeros(), FRESH_SIGMA0, EPISODES, true).unwrap(),
         EPISODES,
         apex,
@@ -223,13 +223,13 @@ fn early_stopping_keeps_the_best_scored_mean_and_leaves_the_search_alone() {
     scored.push(plain.mean());
     let costs: Vec<f64> = scored
         .iter()
-        .map(|&theta| hopper_task::validation_cost(theta, apex, 2).unwrap())
+        .map(|&theta| hopping::validation_cost(theta, apex, 2).unwrap())
         .collect();
     let best = costs.iter().copied().fold(f64::INFINITY, f64::min);
     assert!([14, 28, 35].contains(&kept.episode));
     assert_eq!(kept.validation_cost, best);
     assert_eq!(
-        hopper_task::validation_cost(kept.theta, apex, 1).unwrap(),
+        hopping::validation_cost(kept.theta, apex, 1).unwrap(),
         best
     );
 }

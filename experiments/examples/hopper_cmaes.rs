@@ -4,7 +4,7 @@
 //! policy and plant? A full-covariance CMA-ES answers it.
 //!
 //! ```text
-//! cargo run --release -p host-tests --example hopper_cmaes -- [RUN ...]
+//! cargo run --release -p experiments --example hopper_cmaes -- [RUN ...]
 //! ```
 //!
 //! Each RUN is `start:variant:sigma0:budget:cost:seed`, e.g. `zero:full:0.15:6000:plain:1`:
@@ -43,7 +43,7 @@
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
-use host_tests::hopper_task::{
+use experiments::hopping::{
     self, HopEpisode, K, P, bounds, coordinate_search, evaluate, plant, run_episode,
     training_course,
 };
@@ -123,9 +123,9 @@ fn normal<R: RngCore>(rng: &mut R) -> f64 {
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
-/// One row of the table ([`hopper_task::figures_row`]).
+/// One row of the table ([`hopping::figures_row`]).
 fn row(label: &str, episodes: usize, cost: f64, theta: Vector<P>, extra: &str) {
-    let row = hopper_task::figures_row(label, episodes as u64, cost, theta, extra);
+    let row = hopping::figures_row(label, episodes as u64, cost, theta, extra);
     println!("{}", row.expect("episode"));
 }
 
@@ -133,9 +133,9 @@ fn row(label: &str, episodes: usize, cost: f64, theta: Vector<P>, extra: &str) {
 /// training course, through the adapter), returning its best θ and cost.
 fn coordinate_start() -> (Vector<P>, f64) {
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(1);
-    let n = hopper_task::LEARNING_EPISODES;
+    let n = hopping::LEARNING_EPISODES;
     let search = coordinate_search(Vector::zeros(), n).expect("search");
-    let mut adapter = hopper_task::adapter(search, n, Vector::zeros()).expect("adapter");
+    let mut adapter = hopping::adapter(search, n, Vector::zeros()).expect("adapter");
     for _ in 0..n {
         run_episode(&mut adapter, &mut training_course(), &mut rng, false).expect("episode");
     }
@@ -360,7 +360,7 @@ fn main() {
             }
             "env" => {
                 let theta: Vec<f64> =
-                    hopper_task::theta_from_env().expect("CMAES_THETA is not set");
+                    hopping::theta_from_env().expect("CMAES_THETA is not set");
                 let start = V::from_fn(|i, _| theta[i] / half()[i]);
                 row("given θ (start)", 0, f64::NAN, theta_of(&start), "");
                 start
