@@ -15,11 +15,11 @@ pub mod adapter;
 pub mod pd;
 pub mod policy;
 
-pub use adapter::{Adapter, AdapterConfig, EpisodeReport, Mode};
+pub use adapter::{Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode};
 pub use pd::{Derivative, Pd};
 pub use policy::{CorrectedPd, FeatureMap, LinearPolicy, PeriodicPd, PeriodicRbf, StateFeatures};
 
-use crate::optimizer::Vector;
+use crate::vector::Vector;
 
 /// `value` limited to the interval from `lower` to `upper`: `f32::clamp` without its
 /// `lower <= upper` assertion, the same for every input (NaN stays NaN) when

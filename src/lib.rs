@@ -5,15 +5,38 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod bounds;
 pub mod controller;
+pub mod cost;
+pub mod error;
 pub mod optimizer;
-pub mod reward;
+pub mod random;
+pub mod vector;
 
+#[cfg(test)]
+mod testing;
+
+/// The cost shapers' former module name.
+#[deprecated(since = "0.2.0", note = "renamed to `cost`: the shapers return costs")]
+pub mod reward {
+    pub use crate::cost::*;
+
+    /// The survey cost's former name.
+    #[deprecated(since = "0.2.0", note = "renamed to `cost::SurveyCost`")]
+    pub type SurveyReward = crate::cost::SurveyCost;
+}
+
+/// The RNG trait every `ask` takes (re-exported for [`forward_optimizer!`]).
+pub use rand_core;
+
+pub use bounds::Bounds;
+pub use error::Error;
 pub use optimizer::{
-    Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos, RacosConfig, Replacement,
-    Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
+    AnyOptimizer, Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
+    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Sracos,
+    SracosConfig, Status, Suppression, TwoPhase, Weighting,
 };
+pub use vector::Vector;
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
 /// feature is on (checked by the cross-builds with `--features defmt`).
@@ -30,18 +53,19 @@ const _: () = {
     assert_format::<TwoPhase<ControlledRandomSearch<3, 8>, 3>>();
     assert_format::<controller::Pd<3>>();
     assert_format::<controller::Mode>();
+    assert_format::<controller::AdapterError>();
     assert_format::<controller::AdapterConfig>();
     assert_format::<controller::EpisodeReport<3>>();
     assert_format::<controller::CorrectedPd<3, 6, 6, 18, controller::StateFeatures<6>>>();
     assert_format::<controller::PeriodicPd<10, 31>>();
-    assert_format::<reward::SurveyReward>();
-    assert_format::<reward::QuadraticCost<3>>();
-    assert_format::<reward::ApexHeightCost>();
+    assert_format::<cost::SurveyCost>();
+    assert_format::<cost::QuadraticCost<3>>();
+    assert_format::<cost::ApexHeightCost>();
     assert_format::<
         controller::Adapter<
             CoordinateSearch<18>,
             controller::CorrectedPd<3, 6, 6, 18, controller::StateFeatures<6>>,
-            reward::SurveyReward,
+            cost::SurveyCost,
             18,
             6,
             3,

@@ -162,51 +162,7 @@ enum CemRun<const N: usize> {
 }
 
 impl<const N: usize> Optimizer<N> for CemRun<N> {
-    fn ask<R: rand_core::RngCore + ?Sized>(
-        &mut self,
-        rng: &mut R,
-    ) -> Result<Vector<N>, ctrl_adapt::Error> {
-        match self {
-            Self::All(o) => o.ask(rng),
-            Self::Half(o) => o.ask(rng),
-        }
-    }
-    fn tell(&mut self, cost: f32) -> Result<(), ctrl_adapt::Error> {
-        match self {
-            Self::All(o) => o.tell(cost),
-            Self::Half(o) => o.tell(cost),
-        }
-    }
-    fn best(&self) -> Option<ctrl_adapt::Best<N>> {
-        match self {
-            Self::All(o) => o.best(),
-            Self::Half(o) => o.best(),
-        }
-    }
-    fn pending(&self) -> Option<&Vector<N>> {
-        match self {
-            Self::All(o) => o.pending(),
-            Self::Half(o) => o.pending(),
-        }
-    }
-    fn evaluations(&self) -> u32 {
-        match self {
-            Self::All(o) => o.evaluations(),
-            Self::Half(o) => o.evaluations(),
-        }
-    }
-    fn status(&self) -> ctrl_adapt::Status {
-        match self {
-            Self::All(o) => o.status(),
-            Self::Half(o) => o.status(),
-        }
-    }
-    fn bounds(&self) -> &Bounds<N> {
-        match self {
-            Self::All(o) => o.bounds(),
-            Self::Half(o) => o.bounds(),
-        }
-    }
+    ctrl_adapt::forward_optimizer!(All, Half);
 }
 
 fn functions_row(label: &str, weighting: Weighting, config: CemConfig) {

@@ -14,7 +14,7 @@ use ctrl_adapt::optimizer::{
     Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
     DiagonalCem, Optimizer, Sracos, SracosConfig, Vector,
 };
-use ctrl_adapt::reward::SurveyReward;
+use ctrl_adapt::cost::SurveyCost;
 use host_tests::{functions::sphere, run};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -102,7 +102,7 @@ fn bench<const N: usize, O: Optimizer<N>>(name: &str, make: impl Fn() -> O) {
 }
 
 /// The AUV configuration of the adapter: 18 parameters, state [error, velocity], 3 actions.
-type AuvAdapter<O> = Adapter<O, CorrectedPd<3, 6, 6, 18, StateFeatures<6>>, SurveyReward, 18, 6, 3>;
+type AuvAdapter<O> = Adapter<O, CorrectedPd<3, 6, 6, 18, StateFeatures<6>>, SurveyCost, 18, 6, 3>;
 
 fn main() {
     println!("host: {} {}", std::env::consts::ARCH, std::env::consts::OS);
@@ -119,11 +119,11 @@ fn main() {
     println!("|---|---:|");
     for (name, size) in [
         (
-            "Adapter<CoordinateSearch<18>, AUV policy, SurveyReward>",
+            "Adapter<CoordinateSearch<18>, AUV policy, SurveyCost>",
             size_of::<AuvAdapter<CoordinateSearch<18>>>(),
         ),
         (
-            "Adapter<ControlledRandomSearch<18, 38>, AUV policy, SurveyReward>",
+            "Adapter<ControlledRandomSearch<18, 38>, AUV policy, SurveyCost>",
             size_of::<AuvAdapter<ControlledRandomSearch<18, 38>>>(),
         ),
         (
@@ -134,7 +134,7 @@ fn main() {
             "PeriodicPd<10, 31> (hopping-leg policy)",
             size_of::<PeriodicPd<10, 31>>(),
         ),
-        ("SurveyReward", size_of::<SurveyReward>()),
+        ("SurveyCost", size_of::<SurveyCost>()),
     ] {
         println!("| {name} | {size} |");
     }

@@ -88,11 +88,6 @@ fn learn<O: Optimizer<P>>(
     best.theta
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn report(stage: &str, theta: Vector<P>) {
     let (train, _) = spreads_on(theta, 1001..=1003).expect("episode");
     let (unseen, stable) = spreads_on(theta, 10_001..=10_005).expect("episode");
@@ -100,8 +95,8 @@ fn report(stage: &str, theta: Vector<P>) {
     println!(
         "{stage}: spread (cm) on courses 1001–1003 {train:.2?}; unseen 10001–10005 {unseen:.2?}, \
          median {:.2}; 30001–30010 median {:.2}, max {:.2}; stable hopping {}",
-        median(unseen.clone()),
-        median(more.clone()),
+        host_tests::median(unseen.clone()),
+        host_tests::median(more.clone()),
         more.iter().copied().fold(0.0, f64::max),
         stable && stable_more
     );

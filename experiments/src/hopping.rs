@@ -3,15 +3,16 @@
 //! threads (bit for bit the adapter's sequential run). Re-exports the whole hopping task
 //! (`host_tests::hopper_task`), so a study imports one module.
 
-use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Error, Optimizer, Status, Vector};
-use ctrl_adapt::reward::ApexConfig;
+use ctrl_adapt::controller::AdapterError;
+use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
+use ctrl_adapt::cost::ApexConfig;
 use host_tests::hopper::NominalHopping;
 pub use host_tests::hopper_task::*;
 use rand_core::{RngCore, SeedableRng};
 
 /// One deployed episode of `theta` (nominal gait [`NominalHopping::TUNED`], cost `apex`) on
 /// the block course of `seed`, not recorded.
-pub fn episode_on(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<HopEpisode, Error> {
+pub fn episode_on(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<HopEpisode, AdapterError> {
     let mut unused = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0);
     evaluate_with(
         theta,
@@ -26,7 +27,7 @@ pub fn episode_on(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<HopEp
 /// The cost a learning [`Adapter`] (cost `apex`) tells for one episode of `theta` on the
 /// course of `seed` ([`episode_on`]): the episode's cost, or the failure cost if it failed
 /// (collapse, non-finite cost, faulty ticks).
-pub fn told_cost(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<f32, Error> {
+pub fn told_cost(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<f32, AdapterError> {
     let e = episode_on(theta, seed, apex)?;
     Ok(if e.report.failed {
         adapter_config(1).failure_cost
@@ -40,7 +41,7 @@ pub fn told_cost(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<f32, E
 pub fn spreads_on(
     theta: Vector<P>,
     seeds: impl Iterator<Item = u64>,
-) -> Result<(Vec<f64>, bool), Error> {
+) -> Result<(Vec<f64>, bool), AdapterError> {
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(2);
     let episodes = seeds
         .map(|s| evaluate(theta, &mut plant(true, s), &mut rng, false))
@@ -64,7 +65,7 @@ pub fn figures_row(
     cost: f64,
     theta: Vector<P>,
     extra: &str,
-) -> Result<String, Error> {
+) -> Result<String, AdapterError> {
     let (train, stable_t) = spreads_on(theta, TRAINING_SEED..=TRAINING_SEED)?;
     let (unseen, stable_u) = spreads_on(theta, UNSEEN_COURSES)?;
     let max = unseen.iter().copied().fold(0.0, f64::max);
@@ -108,7 +109,7 @@ pub fn fresh_cmaes(
     sigma0: f32,
     evaluations: u32,
     active: bool,
-) -> Result<FreshCmaes, Error> {
+) -> Result<FreshCmaes, ctrl_adapt::Error> {
     Cmaes::try_new(
         bounds(),
         start,
@@ -143,7 +144,7 @@ pub fn learn_on_fresh_courses<G: RngCore + Clone>(
     rng: &mut G,
     threads: usize,
     mut on_episode: impl FnMut(u32, &FreshCmaes),
-) -> Result<FreshCmaes, Error> {
+) -> Result<FreshCmaes, AdapterError> {
     let mut k = 0u32;
     while k < episodes && cma.status() == Status::Running {
         let left = FRESH_LAMBDA - cma.told_in_generation();
@@ -155,7 +156,7 @@ pub fn learn_on_fresh_courses<G: RngCore + Clone>(
                 probe.tell(0.0)?;
                 Ok(theta)
             })
-            .collect::<Result<Vec<_>, Error>>()?;
+            .collect::<Result<Vec<_>, AdapterError>>()?;
         let costs = parallel_costs(&candidates, FRESH_COURSES + u64::from(k), apex, threads)?;
         for (theta, cost) in candidates.iter().zip(costs) {
             assert_eq!(
@@ -177,7 +178,7 @@ fn parallel_costs(
     first_seed: u64,
     apex: ApexConfig,
     threads: usize,
-) -> Result<Vec<f32>, Error> {
+) -> Result<Vec<f32>, AdapterError> {
     let chunk = candidates.len().div_ceil(threads.max(1)).max(1);
     std::thread::scope(|scope| {
         let handles: Vec<_> = candidates
@@ -190,7 +191,7 @@ fn parallel_costs(
                         .map(|(i, theta)| {
                             told_cost(*theta, first_seed + (c * chunk + i) as u64, apex)
                         })
-                        .collect::<Result<Vec<_>, Error>>()
+                        .collect::<Result<Vec<_>, AdapterError>>()
                 })
             })
             .collect();
@@ -208,7 +209,7 @@ pub const VALIDATION_COURSES: std::ops::RangeInclusive<u64> = 20_001..=20_010;
 
 /// The mean told cost ([`told_cost`] with `apex`) of `theta` over [`VALIDATION_COURSES`],
 /// the episodes on up to `threads` threads.
-pub fn validation_cost(theta: Vector<P>, apex: ApexConfig, threads: usize) -> Result<f64, Error> {
+pub fn validation_cost(theta: Vector<P>, apex: ApexConfig, threads: usize) -> Result<f64, AdapterError> {
     let thetas: Vec<_> = VALIDATION_COURSES.map(|_| theta).collect();
     let costs = parallel_costs(&thetas, *VALIDATION_COURSES.start(), apex, threads)?;
     Ok(costs.iter().map(|&c| f64::from(c)).sum::<f64>() / costs.len() as f64)
@@ -241,7 +242,7 @@ pub fn learn_with_validation<G: RngCore + Clone>(
     threads: usize,
     every: u32,
     mut on_episode: impl FnMut(u32, &FreshCmaes),
-) -> Result<Kept, Error> {
+) -> Result<Kept, AdapterError> {
     let mut kept: Option<(f64, u32, Vector<P>)> = None;
     let mut failed = None;
     let mut score = |k: u32, cma: &FreshCmaes| match validation_cost(cma.mean(), apex, threads) {

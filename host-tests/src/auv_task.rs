@@ -1,6 +1,6 @@
 //! The AUV survey task run through the library's own controller stack: [`Adapter`] over a
 //! [`CorrectedPd`](ctrl_adapt::controller::CorrectedPd) (the vehicle's position PD plus the 18-parameter linear correction of
-//! Leonetti et al. 2012, section 5) scored by [`SurveyReward`], driving the f64 [`Auv`] plant.
+//! Leonetti et al. 2012, section 5) scored by [`SurveyCost`], driving the f64 [`Auv`] plant.
 //!
 //! The controller boundary is `f32`, as on the target: every tick the plant's measured state
 //! becomes the policy's state `[target − p, v]` (6 × f32) and the adapter's velocity command
@@ -10,33 +10,30 @@
 //! One tick observes the state the command is computed from (before the step): the survey
 //! reward sees the positions at t = 0, 0.1, …, 23.9 s.
 
-use ctrl_adapt::controller::{Adapter, AdapterConfig, EpisodeReport};
+use ctrl_adapt::controller::{Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode};
 use ctrl_adapt::optimizer::{
     Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Error,
     Optimizer, Vector,
 };
-use ctrl_adapt::reward::SurveyReward;
+use ctrl_adapt::cost::SurveyCost;
 use rand_core::RngCore;
 
+use crate::Episodic;
 use crate::auv::{Auv, AuvConfig};
 
 // The AUV configuration lives in one no_std place, shared with the PIL firmware.
-pub use pil_link::auv::{
-    AuvController, C_MAX, KD, KP, LOCAL_STEP, LOCAL_TOLERANCE, P, RADIUS, V_MAX, W_BOUND,
+pub use auv_survey::{
+    AuvAdapter, AuvController, C_MAX, CRS_POINTS, KD, KP, LOCAL_STEP, LOCAL_TOLERANCE, P, RADIUS,
+    V_MAX, W_BOUND,
 };
-/// Points of the global phase's controlled random search (the paper's 100 initial samples).
-pub const CRS_POINTS: usize = 100;
-
-/// The adapter of the AUV experiments over optimizer `O`.
-pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyReward, P, 6, 3>;
 
 /// The global phase's optimizer: CRS with the paper's 100 initial samples.
-pub type GlobalSearch = ControlledRandomSearch<P, CRS_POINTS>;
+pub type GlobalSearch = auv_survey::AuvCrs;
 
 /// kp = 0.3, kd = 0.2, |v_cmd| ≤ 0.5 m/s per component, correction within ±0.5 m/s
-/// ([`pil_link::auv::controller`]).
+/// ([`auv_survey::controller`]).
 pub fn controller() -> AuvController {
-    pil_link::auv::controller().expect("valid AUV controller constants")
+    auv_survey::controller().expect("valid AUV controller constants")
 }
 
 /// The box [−1, 1]^18 of W.
@@ -65,7 +62,7 @@ pub fn adapter<O: Optimizer<P>>(
     Adapter::try_new(
         optimizer,
         controller(),
-        SurveyReward::try_new(RADIUS)?,
+        SurveyCost::try_new(RADIUS)?,
         adapter_config(learning_episodes),
         initial,
     )
@@ -161,25 +158,34 @@ pub fn run_episode<O: Optimizer<P>, G: RngCore>(
     auv: &mut Auv,
     rng: &mut G,
     record: bool,
-) -> Result<AuvEpisode, Error> {
+) -> Result<AuvEpisode, AdapterError> {
     auv.reset();
     adapter.begin_episode(rng)?;
+    drive(adapter, auv, record)
+}
+
+/// The ticks and the end of an episode that has begun.
+fn drive(
+    episode: &mut impl Episodic<SurveyCost, P, 6, 3>,
+    auv: &mut Auv,
+    record: bool,
+) -> Result<AuvEpisode, AdapterError> {
     let mut trajectory = record.then(|| Vec::with_capacity(auv.steps_per_episode() + 1));
     for _ in 0..auv.steps_per_episode() {
         if let Some(t) = trajectory.as_mut() {
             t.push(auv.state().position);
         }
-        let u = adapter.control(&policy_state(auv), &true_error(auv));
+        let u = episode.control(&policy_state(auv), &true_error(auv));
         auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
     }
     if let Some(t) = trajectory.as_mut() {
         t.push(auv.state().position);
     }
     let (min_distance, time_within) = (
-        adapter.shaper().min_distance(),
-        adapter.shaper().time_within(),
+        episode.shaper().min_distance(),
+        episode.shaper().time_within(),
     );
-    let report = adapter.end_episode()?;
+    let report = episode.end_episode()?;
     Ok(AuvEpisode {
         report,
         min_distance,
@@ -195,7 +201,7 @@ pub fn run_episodes<O: Optimizer<P>, G: RngCore>(
     rng: &mut G,
     episodes: usize,
     mut on_episode: impl FnMut(&AuvEpisode),
-) -> Result<Vec<AuvEpisode>, Error> {
+) -> Result<Vec<AuvEpisode>, AdapterError> {
     (0..episodes)
         .map(|_| {
             let e = run_episode(adapter, auv, rng, false)?;
@@ -225,16 +231,19 @@ pub fn best_so_far(episodes: &[AuvEpisode]) -> Vec<f32> {
         .collect()
 }
 
-/// Runs one episode of the fixed policy `theta` on `auv` (an adapter in
-/// [`Mode::Deploy`](ctrl_adapt::controller::Mode::Deploy) that explores nothing), recording
-/// the trajectory if `record`.
+/// Runs one episode of the fixed policy `theta` on `auv` (no optimizer: an
+/// [`EpisodeRunner`] inside the same envelope, reported as
+/// [`Mode::Deploy`]), recording the trajectory if `record`.
 pub fn evaluate<G: RngCore>(
     theta: Vector<P>,
     auv: &mut Auv,
-    rng: &mut G,
+    _rng: &mut G,
     record: bool,
-) -> Result<AuvEpisode, Error> {
-    let mut deployed = adapter(coordinate_search(theta, 1)?, 1, theta)?;
-    deployed.set_mode(ctrl_adapt::controller::Mode::Deploy)?;
-    run_episode(&mut deployed, auv, rng, record)
+) -> Result<AuvEpisode, AdapterError> {
+    bounds().check(&theta, "theta")?;
+    let shaper = SurveyCost::try_new(RADIUS)?;
+    let mut runner = EpisodeRunner::try_new(controller(), shaper, adapter_config(1))?;
+    auv.reset();
+    runner.begin_episode(theta, Mode::Deploy)?;
+    drive(&mut runner, auv, record)
 }

@@ -28,16 +28,17 @@
 //! whether the previous step commanded a torque at its limit or ended in a joint stop.
 
 use ctrl_adapt::controller::{
-    Adapter, AdapterConfig, EpisodeReport, LinearPolicy, Pd, PeriodicPd, PeriodicRbf,
+    Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode, LinearPolicy, Pd, PeriodicPd, PeriodicRbf,
 };
 use ctrl_adapt::optimizer::{
     Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer,
     Vector,
 };
-use ctrl_adapt::reward::{ApexConfig, ApexHeightCost, HopSample};
+use ctrl_adapt::cost::{ApexConfig, ApexHeightCost, HopSample};
 use nalgebra::{SMatrix, SVector};
 use rand_core::RngCore;
 
+use crate::Episodic;
 use crate::hopper::{Hopper, HopperConfig, NominalHopping};
 
 /// Periodic kernels per learned signal.
@@ -373,9 +374,18 @@ pub fn run_episode<O: Optimizer<P>, G: RngCore>(
     hopper: &mut Hopper,
     rng: &mut G,
     record: bool,
-) -> Result<HopEpisode, Error> {
+) -> Result<HopEpisode, AdapterError> {
     hopper.reset();
     adapter.begin_episode(rng)?;
+    drive(adapter, hopper, record)
+}
+
+/// The ticks and the end of an episode that has begun.
+fn drive(
+    episode: &mut impl Episodic<ApexHeightCost, P, 4, 2>,
+    hopper: &mut Hopper,
+    record: bool,
+) -> Result<HopEpisode, AdapterError> {
     let limit = hopper.config().torque_limit;
     let mut trajectory = record.then(Vec::new);
     let mut violation = false;
@@ -392,7 +402,7 @@ pub fn run_episode<O: Optimizer<P>, G: RngCore>(
             power: power.abs() as f32,
             limit_violation: violation,
         };
-        let tau = adapter.control(&policy_state(hopper), &sample);
+        let tau = episode.control(&policy_state(hopper), &sample);
         if let Some(t) = trajectory.as_mut().filter(|_| tick % 10 == 0) {
             t.push(HopTick {
                 time: s.time,
@@ -419,9 +429,9 @@ pub fn run_episode<O: Optimizer<P>, G: RngCore>(
     }
     let collapsed = hopper.collapsed();
     let report = if collapsed {
-        adapter.abort_episode()?
+        episode.abort_episode()?
     } else {
-        adapter.end_episode()?
+        episode.end_episode()?
     };
     Ok(HopEpisode {
         report,
@@ -430,23 +440,6 @@ pub fn run_episode<O: Optimizer<P>, G: RngCore>(
         collapsed,
         trajectory,
     })
-}
-
-/// Runs `episodes` episodes of `adapter` on `hopper`, calling `on_episode` after each.
-pub fn run_episodes<O: Optimizer<P>, G: RngCore>(
-    adapter: &mut HopperAdapter<O>,
-    hopper: &mut Hopper,
-    rng: &mut G,
-    episodes: usize,
-    mut on_episode: impl FnMut(&HopEpisode),
-) -> Result<Vec<HopEpisode>, Error> {
-    (0..episodes)
-        .map(|_| {
-            let e = run_episode(adapter, hopper, rng, false)?;
-            on_episode(&e);
-            Ok(e)
-        })
-        .collect()
 }
 
 /// Learning episodes of the hopping experiment.
@@ -462,14 +455,14 @@ pub fn training_course() -> Hopper {
     plant(true, TRAINING_SEED)
 }
 
-/// Runs one episode of the fixed policy `theta` on `hopper` (an adapter in
-/// [`Mode::Deploy`](ctrl_adapt::controller::Mode::Deploy) that explores nothing).
+/// Runs one episode of the fixed policy `theta` on `hopper` (no optimizer: an
+/// [`EpisodeRunner`] inside the same envelope, reported as [`Mode::Deploy`]).
 pub fn evaluate<G: RngCore>(
     theta: Vector<P>,
     hopper: &mut Hopper,
     rng: &mut G,
     record: bool,
-) -> Result<HopEpisode, Error> {
+) -> Result<HopEpisode, AdapterError> {
     evaluate_for(theta, hopper, rng, record, &NominalHopping::TUNED)
 }
 
@@ -480,7 +473,7 @@ pub fn evaluate_for<G: RngCore>(
     rng: &mut G,
     record: bool,
     nominal: &NominalHopping,
-) -> Result<HopEpisode, Error> {
+) -> Result<HopEpisode, AdapterError> {
     evaluate_with(theta, hopper, rng, record, nominal, apex_config())
 }
 
@@ -488,13 +481,16 @@ pub fn evaluate_for<G: RngCore>(
 pub fn evaluate_with<G: RngCore>(
     theta: Vector<P>,
     hopper: &mut Hopper,
-    rng: &mut G,
+    _rng: &mut G,
     record: bool,
     nominal: &NominalHopping,
     apex: ApexConfig,
-) -> Result<HopEpisode, Error> {
-    let mut deployed = adapter_with(coordinate_search(theta, 1)?, 1, theta, nominal, apex)?;
-    deployed.set_mode(ctrl_adapt::controller::Mode::Deploy)?;
-    run_episode(&mut deployed, hopper, rng, record)
+) -> Result<HopEpisode, AdapterError> {
+    bounds().check(&theta, "theta")?;
+    let shaper = ApexHeightCost::try_new(apex)?;
+    let mut runner = EpisodeRunner::try_new(controller_for(nominal), shaper, adapter_config(1))?;
+    hopper.reset();
+    runner.begin_episode(theta, Mode::Deploy)?;
+    drive(&mut runner, hopper, record)
 }
 

@@ -4,6 +4,10 @@
 //! tasks that drive them through the library's adapter: [`auv_task`] and [`hopper_task`];
 //! the demo's figures: [`plots`].
 
+use ctrl_adapt::controller::{
+    Adapter, AdapterError, Controller, EpisodeReport, EpisodeRunner,
+};
+use ctrl_adapt::cost::Shaper;
 use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;
 
@@ -70,6 +74,44 @@ where
         status: optimizer.status(),
     })
 }
+
+/// What an episode driver needs of the library once an episode has begun: the tick-level
+/// calls that [`Adapter`] (learning, deploying) and [`EpisodeRunner`] (a fixed θ, no
+/// optimizer) share, so one driver per plant serves both.
+pub trait Episodic<Sh: Shaper, const P: usize, const S: usize, const A: usize> {
+    /// One control tick ([`Adapter::control`]).
+    fn control(&mut self, state: &Vector<S>, observation: &Sh::Observation) -> Vector<A>;
+    /// The cost shaper's running figures.
+    fn shaper(&self) -> &Sh;
+    /// Ends the episode ([`Adapter::end_episode`]).
+    fn end_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError>;
+    /// Ends the episode as failed ([`Adapter::abort_episode`]).
+    fn abort_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError>;
+}
+
+macro_rules! episodic {
+    ($ty:ty, $($bounds:tt)*) => {
+        impl<$($bounds)*, const P: usize, const S: usize, const A: usize> Episodic<Sh, P, S, A>
+            for $ty
+        {
+            fn control(&mut self, state: &Vector<S>, observation: &Sh::Observation) -> Vector<A> {
+                <$ty>::control(self, state, observation)
+            }
+            fn shaper(&self) -> &Sh {
+                <$ty>::shaper(self)
+            }
+            fn end_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
+                <$ty>::end_episode(self)
+            }
+            fn abort_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
+                <$ty>::abort_episode(self)
+            }
+        }
+    };
+}
+
+episodic!(Adapter<O, C, Sh, P, S, A>, O: Optimizer<P>, C: Controller<P, S, A>, Sh: Shaper);
+episodic!(EpisodeRunner<C, Sh, P, S, A>, C: Controller<P, S, A>, Sh: Shaper);
 
 /// Uniform random search, the baseline of the classification-based optimizers: the best
 /// cost of `budget` uniform samples of `bounds`.

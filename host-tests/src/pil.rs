@@ -2,7 +2,7 @@
 //! the firmware on QEMU's emulated Cortex-M4F, one state frame and one action frame per
 //! control tick over the emulated UART (QEMU `-serial unix:`; [`pil_link`] frames).
 //!
-//! * [`PilPlant`] is what a plant provides; [`AuvPlant`] is the AUV survey of issue 6.
+//! * [`PilPlant`] is what a plant provides; [`AuvPlant`] is the AUV survey.
 //! * [`Qemu`] starts the firmware and connects its UART0 to a Unix socket ([`Link`]).
 //! * [`run_episodes`] drives N episodes over any [`Link`], injecting the [`FaultPlan`]'s
 //!   corrupted and dropped state frames, and records what happened in each episode.
@@ -19,7 +19,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use pil_link::frame::FALLBACK;
-use pil_link::{Controller, Frame, FrameReader, Kind, MAX_WIRE, Session};
+use pil_link::{Frame, FrameReader, Kind, Learner, MAX_WIRE, Session};
 
 use crate::auv::{Auv, AuvConfig};
 
@@ -361,7 +361,7 @@ pub struct EpisodeRecord {
     pub theta: Vec<f32>,
     /// The host's measure of the episode ([`PilPlant::cost`] at its end).
     pub host_cost: f64,
-    /// The firmware's Report values (the AUV learner: [`pil_link::auv::Report`]).
+    /// The firmware's Report values (the AUV learner: [`auv_survey::Report`]).
     pub report: Vec<f32>,
     /// Ticks whose action came back flagged FALLBACK.
     pub fallback_ticks: Vec<u16>,
@@ -479,7 +479,7 @@ pub struct ReferenceEpisode {
 /// Replays a PIL run entirely on the host: the same [`Session`] and `controller` code the
 /// firmware runs, fed the plant's states directly, with a timeout wherever the firmware
 /// answered with the fallback in `pil` (injected faults and any deadline it missed).
-pub fn reference_run<C: Controller>(
+pub fn reference_run<C: Learner>(
     controller: C,
     plant: &mut impl PilPlant,
     ticks: u16,

@@ -11,7 +11,8 @@ use host_tests::auv::AuvConfig;
 use host_tests::pil::{
     AuvPlant, Fault, FaultPlan, Link, PilPlant, RunConfig, reference_run, run_episodes, wire,
 };
-use pil_link::auv::{self, AuvLearner, EpisodeMode, Report};
+use ctrl_adapt::controller::Mode;
+use auv_survey::{self as auv, AuvLearner, Report};
 use pil_link::{Frame, FrameReader, Session};
 
 type Learner = AuvLearner<ctrl_adapt::CoordinateSearch<{ auv::P }>>;
@@ -79,9 +80,9 @@ fn loopback_auv_run_matches_the_reference_and_learns() {
     };
     let learning = 25;
     let mode = |e: u16| match e {
-        0 => EpisodeMode::Nominal,
-        e if e <= learning => EpisodeMode::Learn,
-        _ => EpisodeMode::Deploy,
+        0 => Mode::Nominal,
+        e if e <= learning => Mode::Learn,
+        _ => Mode::Deploy,
     };
     let config = RunConfig {
         episodes: learning + 2,
@@ -92,7 +93,7 @@ fn loopback_auv_run_matches_the_reference_and_learns() {
         },
     };
     let mut run_plant = plant();
-    let request = |e| vec![mode(e).code()];
+    let request = |e| vec![pil_link::mode_code(mode(e))];
     let records = run_episodes(&mut link, &mut run_plant, config, request, |_| {}).unwrap();
     for r in &records {
         let injected: Vec<u16> = r.injected.iter().map(|&(t, _)| t).collect();

@@ -22,6 +22,7 @@
 //! is 19 wire bytes.
 
 use crc::{CRC_16_IBM_3740, Crc};
+use ctrl_adapt::controller::Mode;
 
 /// Most values in one frame (state or action vector).
 pub const MAX_VALUES: usize = 24;
@@ -48,7 +49,7 @@ pub type Values = heapless::Vec<f32, MAX_VALUES>;
 #[repr(u8)]
 pub enum Kind {
     /// Host → firmware: start `episode` with `tick` control ticks; values: what the host
-    /// asks of the episode (the AUV learner: an optional [`crate::auv::EpisodeMode`]).
+    /// asks of the episode (the AUV learner: an optional mode, [`crate::mode_code`]).
     Start = 1,
     /// Firmware → host: the episode has started; values: the parameters θ it runs.
     Started = 2,
@@ -59,7 +60,7 @@ pub enum Kind {
     /// Host → firmware: `episode` is over.
     End = 5,
     /// Firmware → host: the episode's result; `tick`: fallback ticks, values: controller's
-    /// report (the AUV learner: [`crate::auv::Report`]).
+    /// report (the AUV learner: its `Report`).
     Report = 6,
     /// Host → firmware: stop.
     Shutdown = 7,
@@ -261,9 +262,36 @@ impl FrameReader {
     }
 }
 
+/// The wire value of an adapter mode (a Start frame's optional value, a Report's mode):
+/// 0 learn, 1 deploy, 2 nominal.
+pub const fn mode_code(mode: Mode) -> f32 {
+    match mode {
+        Mode::Learn => 0.0,
+        Mode::Deploy => 1.0,
+        Mode::Nominal => 2.0,
+    }
+}
+
+/// The adapter mode of a wire value, if it is one.
+pub fn mode_from_code(code: f32) -> Option<Mode> {
+    [Mode::Learn, Mode::Deploy, Mode::Nominal]
+        .into_iter()
+        .find(|&m| mode_code(m) == code)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Checks: the wire codes of the modes round-trip and nothing else decodes.
+    #[test]
+    fn mode_codes_round_trip() {
+        for m in [Mode::Learn, Mode::Deploy, Mode::Nominal] {
+            assert_eq!(mode_from_code(mode_code(m)), Some(m));
+        }
+        assert_eq!(mode_from_code(f32::NAN), None);
+        assert_eq!(mode_from_code(0.5), None);
+    }
 
     fn wire(frame: &Frame) -> Vec<u8> {
         let mut out = [0u8; MAX_WIRE];

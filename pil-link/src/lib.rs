@@ -12,11 +12,8 @@
 //!   deadline, so the same firmware code runs over QEMU's emulated UART or a real one;
 //! * [`session`]: the firmware side of the protocol (episode start/end, one action per tick,
 //!   the nominal fallback for a corrupted or missing state frame), generic over a
-//!   [`session::Controller`];
-//! * [`auv`]: the AUV survey controller of the seeds' first experiment (the library's
-//!   `Adapter` over the 18-parameter corrected PD, the survey reward and an optimizer),
-//!   configured in one place for the firmware and the host's reference run, and its
-//!   [`session::Controller`] implementation [`auv::AuvLearner`].
+//!   [`session::Learner`] (the application: the library's `Adapter` with its controller,
+//!   cost and optimizer; the AUV survey application is the `auv-survey` crate).
 //!
 //! # Protocol (one episode)
 //! ```text
@@ -30,7 +27,7 @@
 //!                      ◄──────────────── Action {episode, k, flags: FALLBACK, values: u_nominal}
 //! ... ticks 0..ticks ...
 //! End {episode} ───────────────────────► controller.end_episode (tell cost)
-//!                      ◄──────────────── Report {episode, tick: fallbacks, values: auv::Report}
+//!                      ◄──────────────── Report {episode, tick: fallbacks, values: the report}
 //! Shutdown ────────────────────────────► Bye, firmware exits
 //! ```
 //! The host sends a frame only after the answer to the previous one, so the firmware's
@@ -45,11 +42,11 @@ pub mod frame;
 pub mod link;
 pub mod session;
 
-pub mod auv;
-
-pub use frame::{Frame, FrameError, FrameReader, Kind, MAX_VALUES, MAX_WIRE, Values};
+pub use frame::{
+    Frame, FrameError, FrameReader, Kind, MAX_VALUES, MAX_WIRE, Values, mode_code, mode_from_code,
+};
 pub use link::{LinkError, read_frame, write_frame};
-pub use session::{Controller, Session, Stats};
+pub use session::{Learner, Session, Stats};
 
 /// Compile-time proof that the public types implement `defmt::Format` with the `defmt`
 /// feature (the firmware builds with it).
@@ -61,6 +58,4 @@ const _: () = {
     assert_format::<Kind>();
     assert_format::<LinkError<FrameError>>();
     assert_format::<Stats>();
-    assert_format::<auv::EpisodeMode>();
-    assert_format::<auv::Report>();
 };

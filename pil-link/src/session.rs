@@ -1,7 +1,7 @@
 //! The firmware side of the PIL protocol (see the [crate docs](crate)).
 //!
 //! [`Session`] turns received frames (or a passed deadline) into answers and calls the
-//! [`Controller`] at the right moments. It has no clock and no port: the firmware's loop
+//! [`Learner`] at the right moments. It has no clock and no port: the firmware's loop
 //! reads a frame with a deadline ([`crate::read_frame`]) and hands the outcome to
 //! [`Session::on_frame`], [`Session::on_corrupt`] or [`Session::on_timeout`]. The host's
 //! pure-host reference run drives the very same `Session` without a link, so the two runs
@@ -9,14 +9,14 @@
 
 use crate::frame::{FALLBACK, Frame, Kind, Values};
 
-/// What runs on the microcontroller: the policy, the reward and the learner.
-///
-/// [`crate::auv::AuvLearner`] (the controller layer's `Adapter` for the AUV) implements it.
-pub trait Controller {
+/// What runs on the microcontroller behind the session: the policy, the cost and the
+/// optimizer, usually the library's `Adapter` (the AUV survey application's `AuvLearner`
+/// implements it).
+pub trait Learner {
     /// Episode `episode` starts: choose its parameters (the optimizer's `ask`) and write the
     /// ones to report to the host into `theta`. `request` holds the Start frame's values
-    /// (what the host asks of the episode; the AUV learner reads an
-    /// [`EpisodeMode`](crate::auv::EpisodeMode) there).
+    /// (what the host asks of the episode; the AUV learner reads a mode there, see
+    /// [`crate::mode_code`]).
     fn start_episode(&mut self, episode: u16, request: &[f32], theta: &mut Values);
 
     /// The action for a valid state received for the current tick, into `action`; also
@@ -46,7 +46,7 @@ pub struct Stats {
 }
 
 #[derive(Debug, Clone, PartialEq)]
-enum Mode {
+enum Phase {
     /// Between episodes; keeps the last report to answer a repeated End.
     Idle {
         last_report: Option<Frame>,
@@ -61,20 +61,20 @@ enum Mode {
     Finished,
 }
 
-/// The protocol state machine around a [`Controller`].
+/// The protocol state machine around a [`Learner`].
 #[derive(Debug, Clone)]
 pub struct Session<C> {
     controller: C,
-    mode: Mode,
+    phase: Phase,
     stats: Stats,
 }
 
-impl<C: Controller> Session<C> {
+impl<C: Learner> Session<C> {
     /// A session waiting for the first Start.
     pub const fn new(controller: C) -> Self {
         Self {
             controller,
-            mode: Mode::Idle { last_report: None },
+            phase: Phase::Idle { last_report: None },
             stats: Stats {
                 corrupt: 0,
                 fallbacks: 0,
@@ -96,12 +96,12 @@ impl<C: Controller> Session<C> {
     /// Whether a tick is due: an episode is running and has ticks left. Only then does a
     /// deadline apply (between episodes the firmware waits for the host indefinitely).
     pub fn awaiting_tick(&self) -> bool {
-        matches!(self.mode, Mode::Running { ticks, next_tick, .. } if next_tick < ticks)
+        matches!(self.phase, Phase::Running { ticks, next_tick, .. } if next_tick < ticks)
     }
 
     /// Whether the host has said Shutdown.
     pub fn finished(&self) -> bool {
-        self.mode == Mode::Finished
+        self.phase == Phase::Finished
     }
 
     /// A corrupted frame arrived; it is counted and otherwise ignored (the tick's deadline
@@ -113,13 +113,13 @@ impl<C: Controller> Session<C> {
     /// The tick's deadline passed without a valid state: the fallback action, if a tick is
     /// due.
     pub fn on_timeout(&mut self) -> Option<Frame> {
-        let Mode::Running {
+        let Phase::Running {
             started,
             ticks,
             next_tick,
             last_state,
             fallbacks,
-        } = &mut self.mode
+        } = &mut self.phase
         else {
             return None;
         };
@@ -138,14 +138,14 @@ impl<C: Controller> Session<C> {
 
     /// A valid frame arrived: the answer to send, if any.
     pub fn on_frame(&mut self, frame: &Frame) -> Option<Frame> {
-        let reply = match (frame.kind, &mut self.mode) {
+        let reply = match (frame.kind, &mut self.phase) {
             (Kind::Shutdown, _) => {
-                self.mode = Mode::Finished;
+                self.phase = Phase::Finished;
                 Some(Frame::new(Kind::Bye, frame.episode, 0))
             }
-            (_, Mode::Finished) => None,
+            (_, Phase::Finished) => None,
             // A repeated Start (its Started was lost): the same answer, no new ask.
-            (Kind::Start, Mode::Running { started, .. }) if started.episode == frame.episode => {
+            (Kind::Start, Phase::Running { started, .. }) if started.episode == frame.episode => {
                 Some(started.clone())
             }
             // A Start while idle, or for another episode (the host gave the running one up:
@@ -154,7 +154,7 @@ impl<C: Controller> Session<C> {
                 let mut started = Frame::new(Kind::Started, frame.episode, frame.tick);
                 self.controller
                     .start_episode(frame.episode, &frame.values, &mut started.values);
-                self.mode = Mode::Running {
+                self.phase = Phase::Running {
                     started: started.clone(),
                     ticks: frame.tick,
                     next_tick: 0,
@@ -165,7 +165,7 @@ impl<C: Controller> Session<C> {
             }
             (
                 Kind::State,
-                Mode::Running {
+                Phase::Running {
                     started,
                     ticks,
                     next_tick,
@@ -184,13 +184,13 @@ impl<C: Controller> Session<C> {
             }
             (
                 Kind::End,
-                Mode::Running {
+                Phase::Running {
                     started, fallbacks, ..
                 },
             ) if started.episode == frame.episode => {
                 let mut report = Frame::new(Kind::Report, frame.episode, *fallbacks);
                 self.controller.end_episode(&mut report.values);
-                self.mode = Mode::Idle {
+                self.phase = Phase::Idle {
                     last_report: Some(report.clone()),
                 };
                 Some(report)
@@ -198,7 +198,7 @@ impl<C: Controller> Session<C> {
             // A repeated End (its Report was lost): the same report, no second tell.
             (
                 Kind::End,
-                Mode::Idle {
+                Phase::Idle {
                     last_report: Some(report),
                 },
             ) if report.episode == frame.episode => Some(report.clone()),
@@ -224,7 +224,7 @@ mod tests {
         ends: u32,
     }
 
-    impl Controller for Probe {
+    impl Learner for Probe {
         fn start_episode(&mut self, _: u16, _: &[f32], theta: &mut Values) {
             self.starts += 1;
             theta.push(self.starts as f32).unwrap();

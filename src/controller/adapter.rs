@@ -1,5 +1,5 @@
 //! The episodic adapter: owns an optimizer, a controller with a correction policy and a
-//! reward shaper, and runs the learning loop one episode at a time.
+//! cost shaper, and runs the learning loop one episode at a time.
 //!
 //! ```text
 //! begin_episode(rng)  → θ (optimizer.ask, or the best θ when deploying)
@@ -22,11 +22,15 @@
 //!    or on demand ([`Adapter::set_mode`]), the adapter runs the best θ found
 //!    ([`Mode::Deploy`]) and explores no more. [`Mode::Nominal`] runs the bare controller.
 
+use core::fmt;
+
 use rand_core::RngCore;
 
 use super::Controller;
-use crate::optimizer::{Error, Optimizer, Vector};
-use crate::reward::Shaper;
+use crate::cost::Shaper;
+use crate::error::Error;
+use crate::optimizer::Optimizer;
+use crate::vector::Vector;
 
 /// What the adapter does with episodes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,6 +96,45 @@ pub struct EpisodeReport<const P: usize> {
     pub ticks: u32,
 }
 
+/// Why an [`Adapter`] or [`EpisodeRunner`] call was refused: the call order, or the
+/// optimizer's own error. The refused call changes nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum AdapterError {
+    /// An episode is running: end it before beginning another or changing mode.
+    EpisodeInProgress,
+    /// No episode is running: begin one first.
+    NoEpisode,
+    /// The optimizer refused (a parameter outside the box, a stopped search, ...).
+    Optimizer(Error),
+}
+
+impl From<Error> for AdapterError {
+    fn from(error: Error) -> Self {
+        Self::Optimizer(error)
+    }
+}
+
+impl fmt::Display for AdapterError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::EpisodeInProgress => f.write_str("an episode is in progress"),
+            Self::NoEpisode => f.write_str("no episode is in progress"),
+            Self::Optimizer(e) => write!(f, "optimizer: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for AdapterError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Optimizer(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
 /// The episode in progress.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -102,82 +145,70 @@ struct Episode<const P: usize> {
     faulty_ticks: u32,
 }
 
-/// The episodic learning loop with its safety envelope (see the [module docs](self)).
+/// One episode at a time of a controller with a fixed θ, inside the safety envelope (items
+/// 2–4 of the [module docs](self)), scored by a cost shaper; no optimizer.
 ///
-/// `O` optimizes θ ∈ R^P; `C` maps a state in R^S to an action in R^A; `R` scores episodes.
+/// The [`Adapter`] runs its episodes through one of these. Use it on its own to run a θ
+/// computed elsewhere (a host simulation, a checkpoint) or to score a θ again.
+///
+/// ```
+/// use ctrl_adapt::controller::{
+///     AdapterConfig, CorrectedPd, EpisodeRunner, LinearPolicy, Mode, Pd, StateFeatures,
+/// };
+/// use ctrl_adapt::cost::QuadraticCost;
+/// use ctrl_adapt::Vector;
+///
+/// let pd = Pd::<1>::try_new(Vector::repeat(2.0), Vector::repeat(0.5))?;
+/// let policy = LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(1.0))?;
+/// let controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+/// let config = AdapterConfig { dt: 0.1, failure_cost: 10.0, max_faulty_ticks: 0, learning_episodes: 1 };
+/// let mut runner = EpisodeRunner::try_new(controller, QuadraticCost::try_new(Vector::<1>::repeat(1.0))?, config)?;
+/// runner.begin_episode(Vector::from([0.5, 0.0]), Mode::Deploy)?;
+/// let u = runner.control(&Vector::from([1.0, 0.0]), &Vector::repeat(1.0));
+/// assert_eq!(u, Vector::repeat(2.5)); // PD 2·1 plus the correction 0.5·1
+/// let report = runner.end_episode()?;
+/// assert_eq!((report.ticks, report.told, report.failed), (1, None, false));
+/// # Ok::<(), Box<dyn core::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Adapter<O, C, R, const P: usize, const S: usize, const A: usize> {
-    optimizer: O,
+pub struct EpisodeRunner<C, Sh, const P: usize, const S: usize, const A: usize> {
     controller: C,
-    shaper: R,
+    shaper: Sh,
     config: AdapterConfig,
-    mode: Mode,
-    initial: Vector<P>,
     episode: Option<Episode<P>>,
-    learning_episodes: u32,
 }
 
-impl<O, C, R, const P: usize, const S: usize, const A: usize> Adapter<O, C, R, P, S, A>
+impl<C, Sh, const P: usize, const S: usize, const A: usize> EpisodeRunner<C, Sh, P, S, A>
 where
-    O: Optimizer<P>,
     C: Controller<P, S, A>,
-    R: Shaper,
+    Sh: Shaper,
 {
-    /// An adapter in [`Mode::Learn`]. `initial` is the θ deployed before any episode has
-    /// been told (zero correction, or a θ learned elsewhere); it must lie in the optimizer's
-    /// bounds.
-    pub fn try_new(
-        optimizer: O,
-        controller: C,
-        shaper: R,
-        config: AdapterConfig,
-        initial: Vector<P>,
-    ) -> Result<Self, Error> {
+    /// A runner between episodes (`config.learning_episodes` plays no part here).
+    pub fn try_new(controller: C, shaper: Sh, config: AdapterConfig) -> Result<Self, Error> {
         config.validate()?;
-        optimizer.bounds().check(&initial, "initial")?;
         Ok(Self {
-            optimizer,
             controller,
             shaper,
             config,
-            mode: Mode::Learn,
-            initial,
             episode: None,
-            learning_episodes: 0,
         })
     }
 
-    /// Starts an episode and returns the θ it runs. In [`Mode::Learn`] this asks the
-    /// optimizer; when the learning budget is spent or the optimizer has stopped, the
-    /// adapter rolls back to [`Mode::Deploy`] first. Errors if an episode is running.
-    pub fn begin_episode<G: RngCore + ?Sized>(&mut self, rng: &mut G) -> Result<Vector<P>, Error> {
+    /// Starts an episode that runs `theta` (or, in [`Mode::Nominal`], the bare controller).
+    /// The runner does not check `theta` against a box: the [`Adapter`] does.
+    pub fn begin_episode(&mut self, theta: Vector<P>, mode: Mode) -> Result<(), AdapterError> {
         if self.episode.is_some() {
-            return Err(Error::EpisodeInProgress);
+            return Err(AdapterError::EpisodeInProgress);
         }
-        if self.mode == Mode::Learn && self.learning_episodes >= self.config.learning_episodes {
-            self.mode = Mode::Deploy;
-        }
-        let theta = match self.mode {
-            Mode::Learn => match self.optimizer.ask(rng) {
-                Ok(theta) => theta,
-                Err(Error::Stopped) => {
-                    self.mode = Mode::Deploy;
-                    self.deployed_theta()
-                }
-                Err(e) => return Err(e),
-            },
-            Mode::Deploy => self.deployed_theta(),
-            Mode::Nominal => Vector::zeros(),
-        };
         self.shaper.reset();
         self.episode = Some(Episode {
             theta,
-            mode: self.mode,
+            mode,
             ticks: 0,
             faulty_ticks: 0,
         });
-        Ok(theta)
+        Ok(())
     }
 
     /// One control tick: the action for `state`, with `observation` fed to the shaper.
@@ -185,7 +216,7 @@ where
     /// Never fails: a non-finite state or corrected action gives the nominal action (or the
     /// safe action) and counts a faulty tick. Outside an episode the nominal controller runs
     /// and nothing is recorded.
-    pub fn control(&mut self, state: &Vector<S>, observation: &R::Observation) -> Vector<A> {
+    pub fn control(&mut self, state: &Vector<S>, observation: &Sh::Observation) -> Vector<A> {
         let Some(episode) = self.episode.as_mut() else {
             return finite_or(self.controller.nominal(state, 0.0), || {
                 self.controller.safe_action()
@@ -211,52 +242,190 @@ where
         action
     }
 
-    /// Ends the episode: scores it and, when learning, tells the optimizer (the failure cost
-    /// if the episode failed). Errors if no episode is running.
-    pub fn end_episode(&mut self) -> Result<EpisodeReport<P>, Error> {
+    /// Ends the episode and scores it; `told` is `None` in the report (nothing to tell).
+    pub fn end_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
         self.finish(false)
     }
 
-    /// Ends the episode as failed (a watchdog fired, the operator stopped the robot): a
-    /// learning episode is told the failure cost.
-    pub fn abort_episode(&mut self) -> Result<EpisodeReport<P>, Error> {
+    /// Ends the episode as failed (a watchdog fired, the operator stopped the robot).
+    pub fn abort_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
         self.finish(true)
     }
 
-    fn finish(&mut self, aborted: bool) -> Result<EpisodeReport<P>, Error> {
-        let episode = self.episode.ok_or(Error::NoEpisode)?;
+    fn finish(&mut self, aborted: bool) -> Result<EpisodeReport<P>, AdapterError> {
+        let episode = self.episode.ok_or(AdapterError::NoEpisode)?;
         let cost = self.shaper.cost();
         let failed =
             aborted || !cost.is_finite() || episode.faulty_ticks > self.config.max_faulty_ticks;
-        let told = if episode.mode == Mode::Learn {
-            let value = if failed {
-                self.config.failure_cost
-            } else {
-                cost
-            };
-            self.optimizer.tell(value)?;
-            self.learning_episodes = self.learning_episodes.saturating_add(1);
-            Some(value)
-        } else {
-            None
-        };
         self.episode = None;
         Ok(EpisodeReport {
             theta: episode.theta,
             mode: episode.mode,
             cost,
-            told,
+            told: None,
             failed,
             faulty_ticks: episode.faulty_ticks,
             ticks: episode.ticks,
         })
     }
 
+    /// Whether an episode is running.
+    pub fn in_episode(&self) -> bool {
+        self.episode.is_some()
+    }
+
+    /// The mode of the running episode, if any.
+    fn episode_mode(&self) -> Option<Mode> {
+        self.episode.map(|e| e.mode)
+    }
+
+    /// The controller.
+    pub fn controller(&self) -> &C {
+        &self.controller
+    }
+
+    /// The cost shaper (its running figures, e.g. the survey's minimum distance).
+    pub fn shaper(&self) -> &Sh {
+        &self.shaper
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &AdapterConfig {
+        &self.config
+    }
+}
+
+/// The episodic learning loop with its safety envelope (see the [module docs](self)).
+///
+/// `O` optimizes θ ∈ R^P; `C` maps a state in R^S to an action in R^A; `Sh` (a cost
+/// [`Shaper`]) scores episodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Adapter<O, C, Sh, const P: usize, const S: usize, const A: usize> {
+    optimizer: O,
+    runner: EpisodeRunner<C, Sh, P, S, A>,
+    mode: Mode,
+    initial: Vector<P>,
+    learning_episodes: u32,
+}
+
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize> Adapter<O, C, Sh, P, S, A>
+where
+    O: Optimizer<P>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+{
+    /// An adapter in [`Mode::Learn`]. `initial` is the θ deployed before any episode has
+    /// been told (zero correction, or a θ learned elsewhere); it must lie in the optimizer's
+    /// bounds.
+    pub fn try_new(
+        optimizer: O,
+        controller: C,
+        shaper: Sh,
+        config: AdapterConfig,
+        initial: Vector<P>,
+    ) -> Result<Self, Error> {
+        let runner = EpisodeRunner::try_new(controller, shaper, config)?;
+        optimizer.bounds().check(&initial, "initial")?;
+        Ok(Self {
+            optimizer,
+            runner,
+            mode: Mode::Learn,
+            initial,
+            learning_episodes: 0,
+        })
+    }
+
+    /// Starts an episode and returns the θ it runs. In [`Mode::Learn`] this asks the
+    /// optimizer; when the learning budget is spent or the optimizer has stopped, the
+    /// adapter rolls back to [`Mode::Deploy`] first. Errors if an episode is running.
+    pub fn begin_episode<R: RngCore + ?Sized>(
+        &mut self,
+        rng: &mut R,
+    ) -> Result<Vector<P>, AdapterError> {
+        if self.runner.in_episode() {
+            return Err(AdapterError::EpisodeInProgress);
+        }
+        if self.mode == Mode::Learn
+            && self.learning_episodes >= self.runner.config().learning_episodes
+        {
+            self.mode = Mode::Deploy;
+        }
+        let theta = match self.mode {
+            Mode::Learn => match self.optimizer.ask(rng) {
+                Ok(theta) => theta,
+                Err(Error::Stopped) => {
+                    self.mode = Mode::Deploy;
+                    self.deployed_theta()
+                }
+                Err(e) => return Err(e.into()),
+            },
+            Mode::Deploy => self.deployed_theta(),
+            Mode::Nominal => Vector::zeros(),
+        };
+        self.runner.begin_episode(theta, self.mode)?;
+        Ok(theta)
+    }
+
+    /// Starts an episode that runs `theta` (checked against the optimizer's box) and tells
+    /// nothing, whatever the mode: to evaluate a θ handed over from elsewhere (a host
+    /// simulation, an operator) inside the same envelope. Its report says [`Mode::Deploy`].
+    pub fn begin_fixed_episode(&mut self, theta: Vector<P>) -> Result<(), AdapterError> {
+        if self.runner.in_episode() {
+            return Err(AdapterError::EpisodeInProgress);
+        }
+        self.optimizer.bounds().check(&theta, "theta")?;
+        self.runner.begin_episode(theta, Mode::Deploy)
+    }
+
+    /// One control tick: the action for `state`, with `observation` fed to the shaper.
+    ///
+    /// Never fails: a non-finite state or corrected action gives the nominal action (or the
+    /// safe action) and counts a faulty tick. Outside an episode the nominal controller runs
+    /// and nothing is recorded.
+    pub fn control(&mut self, state: &Vector<S>, observation: &Sh::Observation) -> Vector<A> {
+        self.runner.control(state, observation)
+    }
+
+    /// Ends the episode: scores it and, when learning, tells the optimizer (the failure cost
+    /// if the episode failed). Errors if no episode is running.
+    pub fn end_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
+        self.finish(false)
+    }
+
+    /// Ends the episode as failed (a watchdog fired, the operator stopped the robot): a
+    /// learning episode is told the failure cost.
+    pub fn abort_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
+        self.finish(true)
+    }
+
+    fn finish(&mut self, aborted: bool) -> Result<EpisodeReport<P>, AdapterError> {
+        let learning = self.runner.episode_mode() == Some(Mode::Learn);
+        let mut report = if aborted {
+            self.runner.abort_episode()?
+        } else {
+            self.runner.end_episode()?
+        };
+        if learning {
+            let value = if report.failed {
+                self.runner.config().failure_cost
+            } else {
+                report.cost
+            };
+            // Cannot fail: `value` is finite (the failure cost is validated) and the
+            // episode's candidate is pending (only this adapter asks its optimizer).
+            self.optimizer.tell(value)?;
+            self.learning_episodes = self.learning_episodes.saturating_add(1);
+            report.told = Some(value);
+        }
+        Ok(report)
+    }
+
     /// Switches mode between episodes ([`Mode::Deploy`] is the rollback to the best θ).
     /// Errors while an episode is running.
-    pub fn set_mode(&mut self, mode: Mode) -> Result<(), Error> {
-        if self.episode.is_some() {
-            return Err(Error::EpisodeInProgress);
+    pub fn set_mode(&mut self, mode: Mode) -> Result<(), AdapterError> {
+        if self.runner.in_episode() {
+            return Err(AdapterError::EpisodeInProgress);
         }
         self.mode = mode;
         Ok(())
@@ -279,7 +448,7 @@ where
 
     /// Whether an episode is running.
     pub fn in_episode(&self) -> bool {
-        self.episode.is_some()
+        self.runner.in_episode()
     }
 
     /// The optimizer.
@@ -289,17 +458,17 @@ where
 
     /// The controller.
     pub fn controller(&self) -> &C {
-        &self.controller
+        self.runner.controller()
     }
 
-    /// The reward shaper (its running figures, e.g. the survey's minimum distance).
-    pub fn shaper(&self) -> &R {
-        &self.shaper
+    /// The cost shaper (its running figures, e.g. the survey's minimum distance).
+    pub fn shaper(&self) -> &Sh {
+        self.runner.shaper()
     }
 
     /// The configuration.
     pub fn config(&self) -> &AdapterConfig {
-        &self.config
+        self.runner.config()
     }
 }
 
@@ -438,15 +607,15 @@ mod tests {
     fn call_order_is_checked() {
         let mut a = adapter(CONFIG, 100);
         let mut r = rng();
-        assert_eq!(a.end_episode(), Err(Error::NoEpisode));
+        assert_eq!(a.end_episode(), Err(AdapterError::NoEpisode));
         // Outside an episode the nominal controller runs and nothing is recorded.
         assert_eq!(
             a.control(&Vector::from([0.5, 0.0]), &3.0),
             Vector::<1>::repeat(1.0)
         );
         a.begin_episode(&mut r).unwrap();
-        assert_eq!(a.begin_episode(&mut r), Err(Error::EpisodeInProgress));
-        assert_eq!(a.set_mode(Mode::Deploy), Err(Error::EpisodeInProgress));
+        assert_eq!(a.begin_episode(&mut r), Err(AdapterError::EpisodeInProgress));
+        assert_eq!(a.set_mode(Mode::Deploy), Err(AdapterError::EpisodeInProgress));
         a.end_episode().unwrap();
         let bad = Adapter::try_new(
             *a.optimizer(),

@@ -18,7 +18,8 @@
 //! as [`Derivative`] says.
 
 use super::clamp;
-use crate::optimizer::{Error, Vector};
+use crate::error::Error;
+use crate::vector::Vector;
 
 /// Which signal [`Pd::update`] differentiates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -20,7 +20,8 @@
 use core::f32::consts::TAU;
 
 use super::{Controller, Pd, clamp};
-use crate::optimizer::{Error, Vector};
+use crate::error::Error;
+use crate::vector::Vector;
 
 /// Features φ ∈ R^F of the state and of the time since the episode began.
 pub trait FeatureMap<const S: usize, const F: usize> {

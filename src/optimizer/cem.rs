@@ -319,7 +319,6 @@ pub struct DiagonalCem<const N: usize, const K: usize, const E: usize = K> {
     /// J_max of the current batch.
     worst: f32,
     updates: u32,
-    status: Status,
     ledger: Ledger<N>,
 }
 
@@ -368,7 +367,6 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
             told: 0,
             worst: f32::NEG_INFINITY,
             updates: 0,
-            status: Status::Running,
             ledger: Ledger::new(config.max_evaluations),
         })
     }
@@ -471,18 +469,15 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
         self.told = 0;
         self.worst = f32::NEG_INFINITY;
         if self.variances.max() <= self.config.tolerance {
-            self.status = Status::Converged;
+            self.ledger.stop(Status::Converged);
         }
     }
 }
 
 impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCem<N, K, E> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
-        if let Some(pending) = self.ledger.pending() {
-            return Ok(*pending);
-        }
-        if self.status != Status::Running {
-            return Err(Error::Stopped);
+        if let Some(pending) = self.ledger.reissue()? {
+            return Ok(pending);
         }
         let theta = if self.config.first_is_mean && self.told == 0 {
             self.mean
@@ -500,9 +495,7 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
         if self.told >= K {
             self.update();
         }
-        if self.status == Status::Running && self.ledger.budget_spent() {
-            self.status = Status::BudgetSpent;
-        }
+        self.ledger.settle();
         Ok(())
     }
 
@@ -514,12 +507,7 @@ mod tests {
     use super::*;
     use crate::optimizer::Best;
     use proptest::prelude::*;
-    use rand_core::SeedableRng;
-    use rand_xoshiro::Xoshiro128PlusPlus;
-
-    fn rng(seed: u64) -> Xoshiro128PlusPlus {
-        Xoshiro128PlusPlus::seed_from_u64(seed)
-    }
+    use crate::testing::rng;
 
     fn weights_of(weighting: Weighting, sorted: &[f32], worst: f32) -> std::vec::Vec<f32> {
         let mut out = std::vec![0.0; sorted.len()];

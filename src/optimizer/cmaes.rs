@@ -397,7 +397,6 @@ pub struct Cmaes<const N: usize, const L: usize> {
     /// Generations since p_σ was last zero (for h_σ's correction factor).
     path_generations: u32,
     recoveries: u32,
-    status: Status,
     ledger: Ledger<N>,
 }
 
@@ -440,7 +439,6 @@ where
             generations: 0,
             path_generations: 0,
             recoveries: 0,
-            status: Status::Running,
             ledger: Ledger::new(config.max_evaluations),
         })
     }
@@ -621,7 +619,7 @@ where
             self.recover(old_mean);
         }
         if self.sigma * self.scales.max() <= self.config.tolerance {
-            self.status = Status::Converged;
+            self.ledger.stop(Status::Converged);
         }
     }
 
@@ -667,11 +665,8 @@ where
     Const<N>: SymmetricEigenSize<N>,
 {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
-        if let Some(pending) = self.ledger.pending() {
-            return Ok(*pending);
-        }
-        if self.status != Status::Running {
-            return Err(Error::Stopped);
+        if let Some(pending) = self.ledger.reissue()? {
+            return Ok(pending);
         }
         let z = Self::draw(rng);
         let x = self.mean + self.step_of(&z) * self.sigma;
@@ -705,9 +700,7 @@ where
         if self.told >= L {
             self.update();
         }
-        if self.status == Status::Running && self.ledger.budget_spent() {
-            self.status = Status::BudgetSpent;
-        }
+        self.ledger.settle();
         Ok(())
     }
 
@@ -719,12 +712,7 @@ mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
     use proptest::prelude::*;
-    use rand_core::SeedableRng;
-    use rand_xoshiro::Xoshiro128PlusPlus;
-
-    fn rng(seed: u64) -> Xoshiro128PlusPlus {
-        Xoshiro128PlusPlus::seed_from_u64(seed)
-    }
+    use crate::testing::rng;
 
     fn config(initial_sigma: f32, max_evaluations: u32) -> CmaesConfig {
         CmaesConfig {

@@ -171,7 +171,6 @@ pub struct CoordinateSearch<const N: usize> {
     evaluated_this_iteration: u32,
     iterations: u32,
     phase: Phase,
-    status: Status,
     ledger: Ledger<N>,
 }
 
@@ -212,7 +211,6 @@ impl<const N: usize> CoordinateSearch<N> {
             evaluated_this_iteration: 0,
             iterations: 0,
             phase: Phase::Start,
-            status: Status::Running,
             ledger: Ledger::new(config.max_evaluations),
         })
     }
@@ -314,7 +312,7 @@ impl<const N: usize> CoordinateSearch<N> {
         self.iterations = self.iterations.saturating_add(1);
         let largest = self.steps_up.max().max(self.steps_down.max());
         if largest <= self.config.tolerance || self.evaluated_this_iteration == 0 {
-            self.status = Status::Converged;
+            self.ledger.stop(Status::Converged);
             self.phase = Phase::Done;
         }
         self.evaluated_this_iteration = 0;
@@ -326,12 +324,12 @@ impl<const N: usize> CoordinateSearch<N> {
         // Each pass either returns or advances `direction`; a full iteration with no
         // evaluation sets Done, so at most 2·2N passes happen.
         loop {
-            if self.status != Status::Running {
+            if self.ledger.status() != Status::Running {
                 self.phase = Phase::Done;
                 return;
             }
             if self.ledger.budget_spent() {
-                self.status = Status::BudgetSpent;
+                self.ledger.stop(Status::BudgetSpent);
                 self.phase = Phase::Done;
                 return;
             }
@@ -382,11 +380,8 @@ impl<const N: usize> CoordinateSearch<N> {
 
 impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
     fn ask<R: RngCore + ?Sized>(&mut self, _rng: &mut R) -> Result<Vector<N>, Error> {
-        if let Some(pending) = self.ledger.pending() {
-            return Ok(*pending);
-        }
-        if self.status != Status::Running {
-            return Err(Error::Stopped);
+        if let Some(pending) = self.ledger.reissue()? {
+            return Ok(pending);
         }
         Ok(self.ledger.hand_out(self.candidate()))
     }
@@ -403,7 +398,7 @@ impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
                 // Step 1 at k = 0: initial steps may already be below the tolerance.
                 let largest = self.steps_up.max().max(self.steps_down.max());
                 if largest <= self.config.tolerance {
-                    self.status = Status::Converged;
+                    self.ledger.stop(Status::Converged);
                 }
             }
             Phase::Probe { step } => {
@@ -449,12 +444,7 @@ mod tests {
     use super::*;
     use crate::optimizer::Best;
     use proptest::prelude::*;
-    use rand_core::SeedableRng;
-    use rand_xoshiro::Xoshiro128PlusPlus;
-
-    fn rng(seed: u64) -> Xoshiro128PlusPlus {
-        Xoshiro128PlusPlus::seed_from_u64(seed)
-    }
+    use crate::testing::rng;
 
     /// Runs the search to its stop (or `budget` evaluations) and returns the best.
     fn minimise<const N: usize>(

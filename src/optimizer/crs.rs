@@ -100,7 +100,6 @@ pub struct ControlledRandomSearch<const N: usize, const M: usize> {
     initial_spread: f32,
     /// A permutation of 0..M, partially reshuffled for each subset draw.
     order: [u16; M],
-    status: Status,
     ledger: Ledger<N>,
 }
 
@@ -118,7 +117,6 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
             filled: 0,
             initial_spread: 0.0,
             order: core::array::from_fn(|i| i as u16),
-            status: Status::Running,
             ledger: Ledger::new(config.max_evaluations),
         })
     }
@@ -211,18 +209,15 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         }
         let (_, j_max, j_min) = self.extremes();
         if j_max - j_min <= self.config.tolerance {
-            self.status = Status::Converged;
+            self.ledger.stop(Status::Converged);
         }
     }
 }
 
 impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, M> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
-        if let Some(pending) = self.ledger.pending() {
-            return Ok(*pending);
-        }
-        if self.status != Status::Running {
-            return Err(Error::Stopped);
+        if let Some(pending) = self.ledger.reissue()? {
+            return Ok(pending);
         }
         if self.filled < M {
             return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
@@ -259,9 +254,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
             }
         }
         self.check_stop();
-        if self.status == Status::Running && self.ledger.budget_spent() {
-            self.status = Status::BudgetSpent;
-        }
+        self.ledger.settle();
         Ok(())
     }
 

@@ -522,7 +522,6 @@ pub struct Sracos<const N: usize, const K: usize = 2, const M: usize = 10> {
     /// Consecutive samples that did not enter the positive set (value suppression).
     non_update: u32,
     phase: Phase<N>,
-    status: Status,
     ledger: Ledger<N>,
 }
 
@@ -544,7 +543,6 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
             slot: 0,
             non_update: 0,
             phase: Phase::Search,
-            status: Status::Running,
             ledger: Ledger::new(config.max_evaluations),
         })
     }
@@ -639,11 +637,8 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
 
 impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, K, M> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
-        if let Some(pending) = self.ledger.pending() {
-            return Ok(*pending);
-        }
-        if self.status != Status::Running {
-            return Err(Error::Stopped);
+        if let Some(pending) = self.ledger.reissue()? {
+            return Ok(pending);
         }
         let theta = match self.phase {
             Phase::Resample { slot, .. } => self.archive.positive.get(slot).map(|p| p.theta),
@@ -664,7 +659,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
         match theta {
             Some(theta) => Ok(self.ledger.hand_out(theta)),
             None => {
-                self.status = Status::Converged;
+                self.ledger.stop(Status::Converged);
                 Err(Error::Stopped)
             }
         }
@@ -694,9 +689,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
                     .insert(entry, self.config.replacement, self.slot),
             },
         }
-        if self.ledger.budget_spent() {
-            self.status = Status::BudgetSpent;
-        }
+        self.ledger.settle();
         Ok(())
     }
 
@@ -717,7 +710,6 @@ pub struct Racos<const N: usize, const K: usize = 2, const M: usize = 10> {
     /// This batch's evaluated samples, the first `batch_len`.
     batch: [Best<N>; M],
     batch_len: usize,
-    status: Status,
     ledger: Ledger<N>,
 }
 
@@ -739,7 +731,6 @@ impl<const N: usize, const K: usize, const M: usize> Racos<N, K, M> {
             batch: archive.negative,
             archive,
             batch_len: 0,
-            status: Status::Running,
             ledger: Ledger::new(config.max_evaluations),
         })
     }
@@ -767,11 +758,8 @@ impl<const N: usize, const K: usize, const M: usize> Racos<N, K, M> {
 
 impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K, M> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
-        if let Some(pending) = self.ledger.pending() {
-            return Ok(*pending);
-        }
-        if self.status != Status::Running {
-            return Err(Error::Stopped);
+        if let Some(pending) = self.ledger.reissue()? {
+            return Ok(pending);
         }
         // batch_len ≤ M: `get` always succeeds and spares a bounds check (panic path).
         let batch = self.batch.get(..self.batch_len).unwrap_or(&[]);
@@ -788,7 +776,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
         match theta {
             Some(theta) => Ok(self.ledger.hand_out(theta)),
             None => {
-                self.status = Status::Converged;
+                self.ledger.stop(Status::Converged);
                 Err(Error::Stopped)
             }
         }
@@ -811,9 +799,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
                 self.batch_len = 0;
             }
         }
-        if self.ledger.budget_spent() {
-            self.status = Status::BudgetSpent;
-        }
+        self.ledger.settle();
         Ok(())
     }
 
@@ -824,12 +810,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use rand_core::SeedableRng;
-    use rand_xoshiro::Xoshiro128PlusPlus;
-
-    fn rng(seed: u64) -> Xoshiro128PlusPlus {
-        Xoshiro128PlusPlus::seed_from_u64(seed)
-    }
+    use crate::testing::rng;
 
     fn sracos<const N: usize, const K: usize, const M: usize>(
         config: SracosConfig,

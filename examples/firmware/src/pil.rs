@@ -9,7 +9,7 @@
 
 use cortex_m::interrupt::InterruptNumber;
 use cortex_m::peripheral::{NVIC, SCB};
-use pil_link::{Controller, FrameReader, Kind, LinkError, Session, read_frame, write_frame};
+use pil_link::{FrameReader, Kind, Learner, LinkError, Session, read_frame, write_frame};
 
 use crate::clock::Millis;
 use crate::uart::{CmsdkUart, Overrun, UART0_BASE, UART0_RX_IRQ};
@@ -100,7 +100,7 @@ impl embedded_io::Write for SleepingPort {
 
 /// Serves the PIL protocol with `controller` until the host says Shutdown, then logs the link
 /// counters and the peak stack and exits 0.
-pub fn serve<C: Controller>(controller: C) -> ! {
+pub fn serve<C: Learner>(controller: C) -> ! {
     let Some(peripherals) = cortex_m::Peripherals::take() else {
         exit_failure()
     };

@@ -18,7 +18,7 @@ use ctrl_adapt::{
     Replacement, Sracos, SracosConfig, Status, Suppression, Vector, Weighting,
 };
 use ctrl_adapt_firmware::functions::{ellipsoid, ellipsoid_minimiser};
-use pil_link::auv;
+use auv_survey as auv;
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 

@@ -28,12 +28,14 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use ctrl_adapt::controller::Controller as _;
+use ctrl_adapt::optimizer::AnyOptimizer;
 use ctrl_adapt::optimizer::{Optimizer, Vector};
 use host_tests::auv::AuvConfig;
 use host_tests::pil::{
     AuvPlant, EpisodeRecord, FaultPlan, PilPlant, Qemu, RunConfig, reference_run, run_episodes,
 };
-use pil_link::auv::{self, AuvLearner, EpisodeMode, Report, SEED};
+use ctrl_adapt::controller::Mode;
+use auv_survey::{self as auv, AuvLearner, Report, SEED};
 
 /// Tolerance between the PIL run and the pure-host reference, on every episode return
 /// (m or s: |a − b| ≤ tolerance · max(1, |b|)). f32 on the target vs f32 on the host: both
@@ -44,13 +46,22 @@ const MATCH_TOLERANCE: f64 = 1e-4;
 const PLANT_SEED: u64 = 1;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Learner {
+enum Firmware {
     Coordinate,
     Sracos,
     Cem,
 }
 
-impl Learner {
+impl Firmware {
+    /// The optimizer this firmware runs, built as the firmware builds it.
+    fn optimizer(self) -> Result<AnyAuvOptimizer, ctrl_adapt::optimizer::Error> {
+        Ok(match self {
+            Self::Coordinate => auv::coordinate_search(u32::MAX)?.into(),
+            Self::Sracos => auv::sracos(u32::MAX)?.into(),
+            Self::Cem => auv::cem(u32::MAX)?.into(),
+        })
+    }
+
     fn elf_name(self) -> &'static str {
         match self {
             Self::Coordinate => "pil",
@@ -69,7 +80,7 @@ impl Learner {
 }
 
 struct Args {
-    learner: Learner,
+    firmware: Firmware,
     elf: Option<PathBuf>,
     episodes: u16,
     ticks: u16,
@@ -82,7 +93,7 @@ struct Args {
 
 fn parse_args() -> Result<Args, String> {
     let mut args = Args {
-        learner: Learner::Coordinate,
+        firmware: Firmware::Coordinate,
         elf: None,
         episodes: 150,
         ticks: auv::TICKS,
@@ -95,10 +106,10 @@ fn parse_args() -> Result<Args, String> {
         let mut value = || it.next().ok_or(format!("{arg} needs a value"));
         match arg.as_str() {
             "--optimizer" => {
-                args.learner = match value()?.as_str() {
-                    "coordinate" => Learner::Coordinate,
-                    "sracos" => Learner::Sracos,
-                    "cem" => Learner::Cem,
+                args.firmware = match value()?.as_str() {
+                    "coordinate" => Firmware::Coordinate,
+                    "sracos" => Firmware::Sracos,
+                    "cem" => Firmware::Cem,
                     other => return Err(format!("unknown optimizer {other}")),
                 }
             }
@@ -141,11 +152,11 @@ fn host_episode(theta: Option<&Vector<{ auv::P }>>, ticks: u16) -> f64 {
 }
 
 /// The episode's mode: the bare PD first, then learning, the best θ last.
-fn mode_of(episode: u16, learning: u16) -> EpisodeMode {
+fn mode_of(episode: u16, learning: u16) -> Mode {
     match episode {
-        0 => EpisodeMode::Nominal,
-        e if e <= learning => EpisodeMode::Learn,
-        _ => EpisodeMode::Deploy,
+        0 => Mode::Nominal,
+        e if e <= learning => Mode::Learn,
+        _ => Mode::Deploy,
     }
 }
 
@@ -166,6 +177,9 @@ fn report_of(values: &[f32]) -> Report {
         faulty_ticks: 0,
     })
 }
+
+/// Any of the PIL firmwares' optimizers, as one type for the host's replay.
+type AnyAuvOptimizer = AnyOptimizer<{ auv::P }, { auv::CEM_SAMPLES }, { auv::CEM_ELITE }, { auv::CRS_POINTS }>;
 
 /// The firmware's learner over `optimizer`, as `examples/firmware/src/bin/pil*.rs` build it.
 fn learner<O: Optimizer<{ auv::P }>>(
@@ -214,7 +228,7 @@ fn main() -> ExitCode {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let elf = args.elf.clone().unwrap_or_else(|| {
         root.join("examples/firmware/target/thumbv7em-none-eabihf/release")
-            .join(args.learner.elf_name())
+            .join(args.firmware.elf_name())
     });
     let learning = args.episodes;
     let total = learning + 2;
@@ -233,7 +247,7 @@ fn main() -> ExitCode {
     let bare = host_episode(None, args.ticks);
     println!(
         "PIL: AUV survey (0.6 m/s current) on the host; Adapter + {} in the firmware (QEMU mps2-an386)",
-        args.learner.describe()
+        args.firmware.describe()
     );
     println!(
         "1 bare-PD episode, {learning} learning episodes, 1 episode of the best theta; {} ticks of {} s; faults: {:?}",
@@ -260,7 +274,7 @@ fn main() -> ExitCode {
         }
     };
     let mut run_plant = plant();
-    let request = |e: u16| vec![mode_of(e, learning).code()];
+    let request = |e: u16| vec![pil_link::mode_code(mode_of(e, learning))];
     let run = run_episodes(&mut link, &mut run_plant, config, request, |r| {
         let report = report_of(&r.report);
         println!(
@@ -287,15 +301,8 @@ fn main() -> ExitCode {
     let elapsed = started.elapsed();
     let status = qemu.wait(Duration::from_secs(10));
 
-    let (worst_host, worst_fw, theta_equal) = match args.learner {
-        Learner::Coordinate => compare(
-            learner(auv::coordinate_search(u32::MAX)),
-            args.ticks,
-            &records,
-        ),
-        Learner::Sracos => compare(learner(auv::sracos(u32::MAX)), args.ticks, &records),
-        Learner::Cem => compare(learner(auv::cem(u32::MAX)), args.ticks, &records),
-    };
+    let (worst_host, worst_fw, theta_equal) =
+        compare(learner(args.firmware.optimizer()), args.ticks, &records);
     let missed: Vec<(u16, u16)> = records
         .iter()
         .flat_map(|r| {

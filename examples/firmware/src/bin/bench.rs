@@ -1,7 +1,7 @@
 //! Footprint benchmark of the optimizers: every measured call sits between exec-trace markers
 //! ([`ctrl_adapt_firmware::bench`]); `scripts/footprint` runs this firmware under QEMU with an
 //! instruction trace and counts the instructions of each call. Measured: one `ask` and one
-//! `tell` of each optimizer over the AUV box of [`pil_link::auv`] (N = 18), 400 evaluations
+//! `tell` of each optimizer over the AUV box of [`auv_survey`] (N = 18), 400 evaluations
 //! each, on the 18-D ill-conditioned ellipsoid (its minimiser is inside the box): the
 //! coordinate search, SRACOS, the diagonal CEM, the controlled random search (100 points) and
 //! the full-covariance CMA-ES (λ = 12, the default population for 18 parameters).
@@ -16,7 +16,7 @@ use core::mem::size_of;
 use ctrl_adapt::{Cmaes, CmaesConfig, CoordinateSearch, Error, Optimizer, Sracos, Status};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, functions, stack};
-use pil_link::auv::{self, AuvAdapter, AuvCem, AuvCrs};
+use auv_survey::{self as auv, AuvAdapter, AuvCem, AuvCrs};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 

@@ -27,14 +27,14 @@ use ctrl_adapt::controller::{
     Controller as _, CorrectedPd, Derivative, LinearPolicy, Mode, Pd, StateFeatures,
 };
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
-use ctrl_adapt::reward::{Shaper, SurveyReward};
+use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::{
     Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
     DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Sracos, SracosConfig, Status,
     Suppression, TwoPhase, Vector, Weighting,
 };
 use ctrl_adapt_firmware::{exit_failure, exit_success};
-use pil_link::auv::{self, AuvLearner};
+use auv_survey::{self as auv, AuvLearner};
 use pil_link::{
     Controller, Frame, FrameReader, Kind, LinkError, MAX_WIRE, Session, read_frame, write_frame,
 };
@@ -326,7 +326,7 @@ fn controller_layer(rng: &mut Rng) -> bool {
     }
     // Outside an episode `control` runs the nominal law.
     black_box(adapter.control(&wild_state::<6>(rng), &Vector::zeros()));
-    let Ok(mut survey) = SurveyReward::try_new(black_box(1.0)) else {
+    let Ok(mut survey) = SurveyCost::try_new(black_box(1.0)) else {
         return false;
     };
     survey.observe(&wild_state::<3>(rng), black_box(0.1));

@@ -1,6 +1,6 @@
 //! Processor-in-the-loop firmware for the AUV survey with the paper's local phase: the
 //! library's `Adapter` over the 18-parameter corrected PD, the survey reward and
-//! `CoordinateSearch<18>` ([`pil_link::auv`]), serving the host's plant over UART0
+//! `CoordinateSearch<18>` ([`auv_survey`]), serving the host's plant over UART0
 //! (`cargo run --release -p host-tests --bin pil`). `pil_sracos` and `pil_cem` are the same
 //! firmware with SRACOS and the diagonal CEM.
 #![no_std]
@@ -9,7 +9,7 @@
 use ctrl_adapt::CoordinateSearch;
 use ctrl_adapt_firmware::{exit_failure, pil};
 use pil_link::Session;
-use pil_link::auv::{self, AuvLearner};
+use auv_survey::{self as auv, AuvLearner};
 
 #[cortex_m_rt::entry]
 fn main() -> ! {

@@ -6,7 +6,7 @@
 
 use ctrl_adapt_firmware::{exit_failure, pil};
 use pil_link::Session;
-use pil_link::auv::{self, AuvCem, AuvLearner};
+use auv_survey::{self as auv, AuvCem, AuvLearner};
 
 #[cortex_m_rt::entry]
 fn main() -> ! {

@@ -7,7 +7,7 @@
 use ctrl_adapt::Sracos;
 use ctrl_adapt_firmware::{exit_failure, pil};
 use pil_link::Session;
-use pil_link::auv::{self, AuvLearner};
+use auv_survey::{self as auv, AuvLearner};
 
 #[cortex_m_rt::entry]
 fn main() -> ! {

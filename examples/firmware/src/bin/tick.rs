@@ -12,7 +12,7 @@ use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{CoordinateSearch, Error, Vector};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, stack};
-use pil_link::auv::{self, AuvAdapter};
+use auv_survey::{self as auv, AuvAdapter};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -45,7 +45,7 @@ fn measure_controller() -> Result<(), Error> {
     let mut adapter: AuvAdapter<CoordinateSearch<N>> = Adapter::try_new(
         auv::coordinate_search(u32::MAX)?,
         auv::controller()?,
-        ctrl_adapt::reward::SurveyReward::try_new(auv::RADIUS)?,
+        ctrl_adapt::cost::SurveyCost::try_new(auv::RADIUS)?,
         auv::adapter_config(u32::MAX),
         theta,
     )?;

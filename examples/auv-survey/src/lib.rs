@@ -1,6 +1,9 @@
 //! The AUV survey controller of Leonetti et al. 2012 (section 5) as the PIL firmware runs it
 //! and as the host's pure-host reference rebuilds it: one `no_std` place for the
 //! configuration, so the two sides cannot drift apart.
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
 //!
 //! * The vehicle's position PD producing velocity commands, k_p = 0.3 1/s, k_d = 0.2, each
 //!   component saturated to ±0.5 m/s, corrected by the 18-parameter linear policy
@@ -11,12 +14,13 @@
 //!   `docs/plants.md`.
 //! * The learners: [`coordinate_search`] (initial step 0.25, tolerance 1e-3: the paper's local
 //!   phase), and the build options [`sracos`] and [`cem`].
-//! * [`AuvLearner`]: the [`Adapter`] behind the PIL [`Session`](crate::Session), implementing
-//!   [`crate::Controller`].
+//! * [`AuvLearner`]: the [`Adapter`] behind the PIL [`Session`](pil_link::Session),
+//!   implementing [`pil_link::Learner`].
 //!
 //! # The learner in the PIL protocol
 //! * **Start** → [`Adapter::begin_episode`]. The Start frame may carry one value, the
-//!   [`EpisodeMode`] the host asks for (learn, deploy the best θ, or run the bare PD); none
+//!   [`Mode`] the host asks for (learn, deploy the best θ, or run the bare PD; wire code
+//!   [`pil_link::mode_code`]); none
 //!   keeps the adapter's mode. The Started frame carries the θ the episode runs. A Start
 //!   while an episode is still running (the host gave it up) first ends that one with
 //!   [`Adapter::abort_episode`], so a learning episode is told the failure cost.
@@ -35,14 +39,15 @@ use ctrl_adapt::controller::{
     StateFeatures,
 };
 use ctrl_adapt::optimizer::{
-    Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
-    DiagonalCem, Error, Optimizer, Sracos, SracosConfig, Vector, Weighting,
+    CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem,
+    Optimizer, Sracos, SracosConfig, Weighting,
 };
-use ctrl_adapt::reward::SurveyReward;
+use ctrl_adapt::{Bounds, Error, Vector};
+use ctrl_adapt::cost::SurveyCost;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
-use crate::frame::Values;
+use pil_link::{Values, mode_code, mode_from_code};
 
 /// Parameters of the policy: W is 3×6.
 pub const P: usize = 18;
@@ -86,7 +91,7 @@ pub const CRS_POINTS: usize = 100;
 pub type AuvController = CorrectedPd<A, S, S, P, StateFeatures<S>>;
 
 /// The adapter over optimizer `O`.
-pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyReward, P, S, A>;
+pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyCost, P, S, A>;
 
 /// The [`cem`] build option's optimizer.
 pub type AuvCem = DiagonalCem<P, CEM_SAMPLES, CEM_ELITE>;
@@ -128,7 +133,7 @@ pub fn adapter<O: Optimizer<P>>(
     Adapter::try_new(
         optimizer,
         controller()?,
-        SurveyReward::try_new(RADIUS)?,
+        SurveyCost::try_new(RADIUS)?,
         adapter_config(learning_episodes),
         Vector::zeros(),
     )
@@ -192,54 +197,6 @@ pub fn crs(max_evaluations: u32) -> Result<AuvCrs, Error> {
     )
 }
 
-/// What the host may ask an episode to be (the Start frame's one value).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum EpisodeMode {
-    /// Run the optimizer's next candidate and tell its cost ([`Mode::Learn`]).
-    Learn,
-    /// Run the best θ found, tell nothing ([`Mode::Deploy`]).
-    Deploy,
-    /// Run the bare PD, tell nothing ([`Mode::Nominal`]).
-    Nominal,
-}
-
-impl EpisodeMode {
-    /// The wire value.
-    pub const fn code(self) -> f32 {
-        match self {
-            Self::Learn => 0.0,
-            Self::Deploy => 1.0,
-            Self::Nominal => 2.0,
-        }
-    }
-
-    /// The mode for a wire value, if it is one.
-    pub fn from_code(code: f32) -> Option<Self> {
-        [Self::Learn, Self::Deploy, Self::Nominal]
-            .into_iter()
-            .find(|m| m.code() == code)
-    }
-
-    /// The adapter's mode.
-    pub const fn mode(self) -> Mode {
-        match self {
-            Self::Learn => Mode::Learn,
-            Self::Deploy => Mode::Deploy,
-            Self::Nominal => Mode::Nominal,
-        }
-    }
-
-    /// From the adapter's mode.
-    pub const fn from_mode(mode: Mode) -> Self {
-        match mode {
-            Mode::Learn => Self::Learn,
-            Mode::Deploy => Self::Deploy,
-            Mode::Nominal => Self::Nominal,
-        }
-    }
-}
-
 /// The Report frame's values: what the adapter made of the episode.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -251,7 +208,7 @@ pub struct Report {
     /// The best cost told so far (NaN before any).
     pub best: f32,
     /// The mode the episode ran in (NaN if no episode ran).
-    pub mode: Option<EpisodeMode>,
+    pub mode: Option<Mode>,
     /// Ticks whose state or action was not finite (the adapter's faulty ticks).
     pub faulty_ticks: u32,
 }
@@ -263,7 +220,7 @@ impl Report {
     /// Writes the report as [cost, told, best, mode, faulty ticks].
     pub fn write(&self, values: &mut Values) {
         values.clear();
-        let mode = self.mode.map_or(f32::NAN, EpisodeMode::code);
+        let mode = self.mode.map_or(f32::NAN, mode_code);
         for v in [
             self.cost,
             self.told,
@@ -282,7 +239,7 @@ impl Report {
                 cost,
                 told,
                 best,
-                mode: EpisodeMode::from_code(mode),
+                mode: mode_from_code(mode),
                 faulty_ticks: faulty as u32,
             }),
             _ => None,
@@ -312,7 +269,7 @@ pub struct AuvLearner<O> {
 
 impl<O: Optimizer<P>> AuvLearner<O> {
     /// The learner over `optimizer`, its RNG seeded with `seed`. The host decides how many
-    /// episodes learn (see [`EpisodeMode`]); the adapter's own budget is `learning_episodes`.
+    /// episodes learn (see [`Mode`]); the adapter's own budget is `learning_episodes`.
     pub fn try_new(optimizer: O, learning_episodes: u32, seed: u64) -> Result<Self, Error> {
         Ok(Self {
             adapter: adapter(optimizer, learning_episodes)?,
@@ -343,15 +300,15 @@ impl<O: Optimizer<P>> AuvLearner<O> {
     }
 }
 
-impl<O: Optimizer<P>> crate::Controller for AuvLearner<O> {
+impl<O: Optimizer<P>> pil_link::Learner for AuvLearner<O> {
     fn start_episode(&mut self, _episode: u16, request: &[f32], theta: &mut Values) {
         if self.adapter.in_episode() {
             // The host gave the running episode up: it failed.
             self.last = self.adapter.abort_episode().ok();
         }
-        if let Some(mode) = request.first().copied().and_then(EpisodeMode::from_code) {
+        if let Some(mode) = request.first().copied().and_then(mode_from_code) {
             // Cannot fail: no episode is running.
-            let _ = self.adapter.set_mode(mode.mode());
+            let _ = self.adapter.set_mode(mode);
         }
         match self.adapter.begin_episode(&mut self.rng) {
             Ok(t) => write_vector(&t, theta),
@@ -387,7 +344,7 @@ impl<O: Optimizer<P>> crate::Controller for AuvLearner<O> {
                 cost: e.cost,
                 told: e.told.unwrap_or(f32::NAN),
                 best,
-                mode: Some(EpisodeMode::from_mode(e.mode)),
+                mode: Some(e.mode),
                 faulty_ticks: e.faulty_ticks,
             },
             None => Report {
@@ -405,7 +362,7 @@ impl<O: Optimizer<P>> crate::Controller for AuvLearner<O> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Controller;
+    use pil_link::Learner;
 
     fn learner() -> AuvLearner<CoordinateSearch<P>> {
         AuvLearner::try_new(coordinate_search(u32::MAX).unwrap(), u32::MAX, SEED).unwrap()
@@ -439,7 +396,7 @@ mod tests {
         l.end_episode(&mut values);
         let r = Report::read(&values).unwrap();
         assert_eq!((r.cost, r.told, r.best), (1.0, 1.0, 1.0));
-        assert_eq!((r.mode, r.faulty_ticks), (Some(EpisodeMode::Learn), 0));
+        assert_eq!((r.mode, r.faulty_ticks), (Some(Mode::Learn), 0));
     }
 
     /// Checks the fallbacks: the nominal PD on the last valid state; zero without one, for a
@@ -449,7 +406,7 @@ mod tests {
     fn fallbacks_are_nominal_or_safe_and_never_tell_a_nan() {
         let mut l = learner();
         let mut theta = Values::new();
-        l.start_episode(0, &[EpisodeMode::Learn.code()], &mut theta);
+        l.start_episode(0, &[mode_code(Mode::Learn)], &mut theta);
         let mut a = Values::new();
         l.fallback(Some(&[1.0, 0.0, -1.0, 0.0, 0.0, 0.0]), &mut a);
         assert!((a[0] - 0.3).abs() < 1e-6 && a[1] == 0.0 && (a[2] + 0.3).abs() < 1e-6);
@@ -476,42 +433,32 @@ mod tests {
         let mut theta = Values::new();
         let mut report = Values::new();
         let mut a = Values::new();
-        l.start_episode(0, &[EpisodeMode::Nominal.code()], &mut theta);
+        l.start_episode(0, &[mode_code(Mode::Nominal)], &mut theta);
         l.act(&[3.0, 0.0, 0.0, 0.0, 0.0, 0.0], &mut a);
         l.end_episode(&mut report);
         let r = Report::read(&report).unwrap();
-        assert_eq!((r.mode, r.cost), (Some(EpisodeMode::Nominal), 3.0));
+        assert_eq!((r.mode, r.cost), (Some(Mode::Nominal), 3.0));
         assert!(r.told.is_nan() && r.best.is_nan());
-        l.start_episode(1, &[EpisodeMode::Learn.code()], &mut theta);
+        l.start_episode(1, &[mode_code(Mode::Learn)], &mut theta);
         l.act(&[2.0, 0.0, 0.0, 0.0, 0.0, 0.0], &mut a);
         l.start_episode(2, &[], &mut theta);
         assert_eq!(l.last_episode().unwrap().told, Some(FAILURE_COST));
         assert_eq!(l.adapter().mode(), Mode::Learn);
         l.act(&[0.5, 0.0, 0.0, 0.0, 0.0, 0.0], &mut a);
         l.end_episode(&mut report);
-        l.start_episode(3, &[EpisodeMode::Deploy.code()], &mut theta);
+        l.start_episode(3, &[mode_code(Mode::Deploy)], &mut theta);
         let best = l.adapter().optimizer().best().unwrap();
         assert_eq!(theta.as_slice(), best.theta.as_slice());
         l.end_episode(&mut report);
         assert_eq!(
             Report::read(&report).unwrap().mode,
-            Some(EpisodeMode::Deploy)
+            Some(Mode::Deploy)
         );
     }
 
-    /// Checks: the wire codes of the modes round-trip and nothing else decodes.
+    /// Checks: a report of the wrong length does not decode.
     #[test]
-    fn mode_codes_round_trip() {
-        for m in [
-            EpisodeMode::Learn,
-            EpisodeMode::Deploy,
-            EpisodeMode::Nominal,
-        ] {
-            assert_eq!(EpisodeMode::from_code(m.code()), Some(m));
-            assert_eq!(EpisodeMode::from_mode(m.mode()), m);
-        }
-        assert_eq!(EpisodeMode::from_code(f32::NAN), None);
-        assert_eq!(EpisodeMode::from_code(0.5), None);
+    fn short_reports_are_rejected() {
         assert_eq!(Report::read(&[1.0, 2.0]), None);
     }
 }

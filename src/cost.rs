@@ -1,4 +1,4 @@
-//! Reward shapers: turn what happens during an episode into the one cost the optimizer sees.
+//! Cost shapers: turn what happens during an episode into the one cost the optimizer sees.
 //!
 //! A shaper is fed an observation every control tick ([`Shaper::observe`]) and gives the
 //! episode's cost at the end ([`Shaper::cost`]); lower is better, as every optimizer here
@@ -9,7 +9,8 @@
 //! cost, which the [`Adapter`](crate::controller::Adapter) turns into its failure penalty
 //! rather than hand a NaN to an optimizer.
 
-use crate::optimizer::{Error, Vector};
+use crate::error::Error;
+use crate::vector::Vector;
 
 /// Accumulates a cost over an episode.
 pub trait Shaper {
@@ -37,9 +38,9 @@ pub trait Shaper {
 /// within D it rewards the time kept there. The two branches meet at cost D when d = D.
 ///
 /// ```
-/// use ctrl_adapt::reward::{Shaper, SurveyReward};
+/// use ctrl_adapt::cost::{Shaper, SurveyCost};
 /// use ctrl_adapt::optimizer::Vector;
-/// let mut survey = SurveyReward::try_new(1.0)?;
+/// let mut survey = SurveyCost::try_new(1.0)?;
 /// survey.observe(&Vector::from([3.0, 0.0, 4.0]), 0.1); // 5 m away
 /// assert_eq!(survey.cost(), 5.0);
 /// for _ in 0..20 {
@@ -50,14 +51,14 @@ pub trait Shaper {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SurveyReward {
+pub struct SurveyCost {
     radius: f32,
     min_distance: f32,
     time_within: f32,
     skipped: u32,
 }
 
-impl SurveyReward {
+impl SurveyCost {
     /// A survey with distance threshold D = `radius` metres (> 0; the paper uses 1 m).
     pub fn try_new(radius: f32) -> Result<Self, Error> {
         if !(radius.is_finite() && radius > 0.0) {
@@ -87,7 +88,7 @@ impl SurveyReward {
     }
 }
 
-impl Shaper for SurveyReward {
+impl Shaper for SurveyCost {
     /// The position error (target − position) in metres.
     type Observation = Vector<3>;
 
@@ -415,7 +416,7 @@ mod tests {
 
     #[test]
     fn survey_cost_is_the_negated_paper_reward() {
-        let mut s = SurveyReward::try_new(1.0).unwrap();
+        let mut s = SurveyCost::try_new(1.0).unwrap();
         assert!(s.cost().is_infinite(), "nothing observed: not finite");
         s.observe(&Vector::from([0.0, 0.0, 2.5]), 0.1);
         s.observe(&Vector::from([f32::NAN, 0.0, 0.0]), 0.1);

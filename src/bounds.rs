@@ -1,0 +1,150 @@
+//! The parameter box `lower <= θ <= upper`: the region every candidate lies in and the first
+//! layer of the safety envelope.
+
+use rand_core::RngCore;
+
+use crate::error::Error;
+use crate::random::unit_f32;
+use crate::vector::Vector;
+
+/// A box `lower <= θ <= upper` in R^N: the parameter region an optimizer may propose from.
+///
+/// On a robot this is the first layer of the safety envelope: no candidate ever leaves it.
+///
+/// ```
+/// use ctrl_adapt::optimizer::{Bounds, Error, Vector};
+/// let b = Bounds::try_new([-1.0, 0.0].into(), [1.0, 2.0].into())?;
+/// assert!(b.contains(&[0.5, 2.0].into()));
+/// assert_eq!(b.clamp(&[3.0, -1.0].into()), Vector::from([1.0, 0.0]));
+/// assert_eq!(
+///     Bounds::<1>::try_new([1.0].into(), [1.0].into()),
+///     Err(Error::InvalidBounds { index: 0 })
+/// );
+/// # Ok::<(), Error>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Bounds<const N: usize> {
+    lower: Vector<N>,
+    upper: Vector<N>,
+}
+
+impl<const N: usize> Bounds<N> {
+    /// The box `[lower, upper]`; every bound must be finite and `lower[i] < upper[i]`
+    /// (a coordinate with no room to move should not be a parameter).
+    pub fn try_new(lower: Vector<N>, upper: Vector<N>) -> Result<Self, Error> {
+        const { assert!(N > 0, "an optimizer needs at least one parameter") };
+        for i in 0..N {
+            let (lo, hi) = (lower[i], upper[i]);
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(Error::InvalidBounds { index: i });
+            }
+        }
+        Ok(Self { lower, upper })
+    }
+
+    /// The same interval `[lower, upper]` in every coordinate.
+    pub fn uniform(lower: f32, upper: f32) -> Result<Self, Error> {
+        Self::try_new(Vector::repeat(lower), Vector::repeat(upper))
+    }
+
+    /// Lower corner.
+    pub fn lower(&self) -> &Vector<N> {
+        &self.lower
+    }
+
+    /// Upper corner.
+    pub fn upper(&self) -> &Vector<N> {
+        &self.upper
+    }
+
+    /// Whether `theta` is finite and inside the box (bounds included).
+    pub fn contains(&self, theta: &Vector<N>) -> bool {
+        (0..N).all(|i| theta[i] >= self.lower[i] && theta[i] <= self.upper[i])
+    }
+
+    /// `theta` projected onto the box coordinate-wise. A NaN coordinate maps to the lower
+    /// bound, so the result is always inside the box.
+    pub fn clamp(&self, theta: &Vector<N>) -> Vector<N> {
+        Vector::from_fn(|i, _| {
+            let v = theta[i];
+            if v.is_nan() {
+                self.lower[i]
+            } else {
+                // Not `f32::clamp`: its `min <= max` assertion is a panic path the
+                // compiler cannot remove (`lower < upper` is an invariant of `try_new`).
+                v.max(self.lower[i]).min(self.upper[i])
+            }
+        })
+    }
+
+    /// `Ok` if `theta` is finite and inside the box; otherwise an error naming it `what`.
+    pub fn check(&self, theta: &Vector<N>, what: &'static str) -> Result<(), Error> {
+        if theta.iter().any(|v| !v.is_finite()) {
+            Err(Error::NonFinite(what))
+        } else if self.contains(theta) {
+            Ok(())
+        } else {
+            Err(Error::OutOfBounds(what))
+        }
+    }
+
+    /// A point drawn uniformly from the box.
+    pub fn sample_uniform<R: RngCore + ?Sized>(&self, rng: &mut R) -> Vector<N> {
+        Vector::from_fn(|i, _| {
+            let v = self.lower[i] + unit_f32(rng) * (self.upper[i] - self.lower[i]);
+            // `lower + u·width` can round up to just past `upper`.
+            v.min(self.upper[i])
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_core::SeedableRng;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    #[test]
+    fn bounds_reject_non_finite_and_empty_intervals() {
+        let ok = Vector::<3>::repeat(1.0);
+        let mut lo = Vector::<3>::zeros();
+        assert!(Bounds::try_new(lo, ok).is_ok());
+        lo[2] = f32::NAN;
+        assert_eq!(
+            Bounds::try_new(lo, ok),
+            Err(Error::InvalidBounds { index: 2 })
+        );
+        lo[2] = 0.0;
+        lo[1] = 1.0;
+        assert_eq!(
+            Bounds::try_new(lo, ok),
+            Err(Error::InvalidBounds { index: 1 })
+        );
+        assert_eq!(
+            Bounds::<2>::uniform(0.0, f32::INFINITY),
+            Err(Error::InvalidBounds { index: 0 })
+        );
+    }
+
+    #[test]
+    fn uniform_samples_and_clamp_stay_inside() {
+        let b = Bounds::<4>::try_new(
+            [-1.0, 0.0, 1e-3, -1e6].into(),
+            [1.0, 1e-6, 2e-3, 1e6].into(),
+        )
+        .unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+        for _ in 0..10_000 {
+            assert!(b.contains(&b.sample_uniform(&mut rng)));
+        }
+        let wild = Vector::<4>::from([f32::NAN, f32::INFINITY, -f32::INFINITY, 0.0]);
+        let c = b.clamp(&wild);
+        assert!(b.contains(&c));
+        assert_eq!(b.check(&wild, "theta"), Err(Error::NonFinite("theta")));
+        assert_eq!(
+            b.check(&Vector::from([2.0, 0.0, 1e-3, 0.0]), "theta"),
+            Err(Error::OutOfBounds("theta"))
+        );
+    }
+}

@@ -1,0 +1,220 @@
+//! Choosing the algorithm at run time without `dyn` or heap: [`AnyOptimizer`], a closed
+//! enum over the library's optimizers, and [`forward_optimizer!`](crate::forward_optimizer),
+//! the macro that forwards the [`Optimizer`] methods of such an enum to its variants (the
+//! pattern of smoltcp's `enum Socket`).
+//!
+//! Firmware that knows its algorithm at compile time should keep the generic path
+//! (`Adapter<CoordinateSearch<18>, …>`): the enum is as large as its largest variant and
+//! every call is a `match`. The enum is for host tools, benchmarks and firmware that must
+//! switch algorithms from a configuration value.
+
+use super::{
+    Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Optimizer, Sracos, TwoPhase,
+    cmaes::SymmetricEigenSize,
+};
+use nalgebra::Const;
+
+/// Forwards every method of [`Optimizer<N>`](crate::optimizer::Optimizer) to the
+/// single-field tuple variants of an enum. Write the `impl` header yourself (with your
+/// generics and bounds; the parameter count must be named `N`) and call the macro inside it
+/// with the variant names.
+///
+/// ```
+/// use ctrl_adapt::optimizer::{CemConfig, DiagonalCem, Optimizer};
+/// use ctrl_adapt::{Bounds, Vector};
+///
+/// /// The same CEM with 5 or with all 10 samples as elites, chosen at run time.
+/// enum Cem<const N: usize> {
+///     Half(DiagonalCem<N, 10, 5>),
+///     All(DiagonalCem<N, 10, 10>),
+/// }
+///
+/// impl<const N: usize> Optimizer<N> for Cem<N> {
+///     ctrl_adapt::forward_optimizer!(Half, All);
+/// }
+///
+/// let bounds = Bounds::<2>::uniform(-1.0, 1.0)?;
+/// let cem = Cem::Half(DiagonalCem::try_new(bounds, Vector::zeros(), CemConfig::DEFAULT)?);
+/// assert_eq!(cem.evaluations(), 0);
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+#[macro_export]
+macro_rules! forward_optimizer {
+    ($($variant:ident),+ $(,)?) => {
+        fn ask<R: $crate::rand_core::RngCore + ?Sized>(
+            &mut self,
+            rng: &mut R,
+        ) -> Result<$crate::Vector<N>, $crate::Error> {
+            match self {
+                $(Self::$variant(o) => o.ask(rng),)+
+            }
+        }
+
+        fn tell(&mut self, cost: f32) -> Result<(), $crate::Error> {
+            match self {
+                $(Self::$variant(o) => o.tell(cost),)+
+            }
+        }
+
+        fn best(&self) -> Option<$crate::optimizer::Best<N>> {
+            match self {
+                $(Self::$variant(o) => o.best(),)+
+            }
+        }
+
+        fn pending(&self) -> Option<&$crate::Vector<N>> {
+            match self {
+                $(Self::$variant(o) => o.pending(),)+
+            }
+        }
+
+        fn evaluations(&self) -> u32 {
+            match self {
+                $(Self::$variant(o) => o.evaluations(),)+
+            }
+        }
+
+        fn status(&self) -> $crate::optimizer::Status {
+            match self {
+                $(Self::$variant(o) => o.status(),)+
+            }
+        }
+
+        fn bounds(&self) -> &$crate::Bounds<N> {
+            match self {
+                $(Self::$variant(o) => o.bounds(),)+
+            }
+        }
+    };
+}
+
+/// One of the library's optimizers, chosen at run time.
+///
+/// `N` parameters; `L` is the population of the diagonal CEM and of CMA-ES (the tutorial's
+/// default for n = 18 is 12, [`default_population`](super::cmaes::default_population)), `E`
+/// the CEM's elites, `M` the controlled random search's points (also the global phase of
+/// [`TwoPhase`]). Each variant is built with its own `try_new`; `From` wraps it.
+///
+/// ```
+/// use ctrl_adapt::optimizer::{AnyOptimizer, CoordinateConfig, CoordinateSearch, Optimizer};
+/// use ctrl_adapt::{Bounds, Vector};
+/// use rand_core::SeedableRng;
+///
+/// let bounds = Bounds::<2>::uniform(-1.0, 1.0)?;
+/// let search = CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT)?;
+/// let mut any: AnyOptimizer<2> = search.into();
+/// let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
+/// let theta = any.ask(&mut rng)?;
+/// any.tell(theta.norm_squared())?;
+/// assert_eq!(any.evaluations(), 1);
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AnyOptimizer<
+    const N: usize,
+    const L: usize = 12,
+    const E: usize = 6,
+    const M: usize = 100,
+> {
+    /// [`CoordinateSearch`]: the local phase.
+    Coordinate(CoordinateSearch<N>),
+    /// [`ControlledRandomSearch`]: the global phase.
+    Crs(ControlledRandomSearch<N, M>),
+    /// [`TwoPhase`] with a controlled random search as its global phase.
+    TwoPhase(TwoPhase<ControlledRandomSearch<N, M>, N>),
+    /// [`Sracos`] with ZOOpt's default set sizes.
+    Sracos(Sracos<N>),
+    /// [`DiagonalCem`] with `L` samples and `E` elites per update.
+    Cem(DiagonalCem<N, L, E>),
+    /// [`Cmaes`] with population `L`.
+    Cmaes(Cmaes<N, L>),
+}
+
+impl<const N: usize, const L: usize, const E: usize, const M: usize> Optimizer<N>
+    for AnyOptimizer<N, L, E, M>
+where
+    Const<N>: SymmetricEigenSize<N>,
+{
+    crate::forward_optimizer!(Coordinate, Crs, TwoPhase, Sracos, Cem, Cmaes);
+}
+
+macro_rules! from_variant {
+    ($($variant:ident($ty:ty)),+ $(,)?) => {
+        $(
+            impl<const N: usize, const L: usize, const E: usize, const M: usize> From<$ty>
+                for AnyOptimizer<N, L, E, M>
+            {
+                fn from(optimizer: $ty) -> Self {
+                    Self::$variant(optimizer)
+                }
+            }
+        )+
+    };
+}
+
+from_variant!(
+    Coordinate(CoordinateSearch<N>),
+    Crs(ControlledRandomSearch<N, M>),
+    TwoPhase(TwoPhase<ControlledRandomSearch<N, M>, N>),
+    Sracos(Sracos<N>),
+    Cem(DiagonalCem<N, L, E>),
+    Cmaes(Cmaes<N, L>),
+);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::optimizer::{CemConfig, CmaesConfig, CoordinateConfig, SracosConfig, Status};
+    use crate::{Bounds, Error, Vector};
+    use rand_core::SeedableRng;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    /// Checks: through the enum, each variant answers exactly as the optimizer it wraps
+    /// (same candidates, best, counters and status over 30 evaluations of a sphere), and a
+    /// misuse error comes through unchanged.
+    #[test]
+    fn forwards_every_method_to_the_variant() {
+        let bounds = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
+        let start = Vector::repeat(0.5);
+        let variants: [AnyOptimizer<3, 7, 3, 10>; 4] = [
+            CoordinateSearch::try_new(bounds, start, CoordinateConfig::DEFAULT)
+                .unwrap()
+                .into(),
+            Sracos::try_new(bounds, SracosConfig::DEFAULT).unwrap().into(),
+            DiagonalCem::try_new(bounds, start, CemConfig::DEFAULT)
+                .unwrap()
+                .into(),
+            Cmaes::try_new(bounds, start, CmaesConfig::DEFAULT)
+                .unwrap()
+                .into(),
+        ];
+        for any in variants {
+            let mut wrapped = any.clone();
+            let mut rng_a = Xoshiro128PlusPlus::seed_from_u64(3);
+            let mut rng_b = rng_a.clone();
+            let mut any = any;
+            assert_eq!(any.tell(1.0), Err(Error::NoPendingAsk));
+            for _ in 0..30 {
+                let a = any.ask(&mut rng_a).unwrap();
+                let b = match &mut wrapped {
+                    AnyOptimizer::Coordinate(o) => o.ask(&mut rng_b),
+                    AnyOptimizer::Sracos(o) => o.ask(&mut rng_b),
+                    AnyOptimizer::Cem(o) => o.ask(&mut rng_b),
+                    AnyOptimizer::Cmaes(o) => o.ask(&mut rng_b),
+                    _ => unreachable!(),
+                }
+                .unwrap();
+                assert_eq!(a, b);
+                assert_eq!(any.pending(), Some(&a));
+                any.tell(a.norm_squared()).unwrap();
+                wrapped.tell(b.norm_squared()).unwrap();
+            }
+            assert_eq!(any, wrapped);
+            assert_eq!(any.evaluations(), 30);
+            assert_eq!(any.status(), Status::Running);
+            assert_eq!(any.bounds(), &bounds);
+            assert!(any.best().is_some_and(|b| b.cost < 0.75));
+        }
+    }
+}

@@ -1,0 +1,143 @@
+//! The book-keeping every optimizer shares: the pending candidate, the evaluation count
+//! against the budget, the status and the best (θ, cost) so far, with the ask prologue and
+//! the tell epilogue written once.
+
+use super::{Best, Status};
+use crate::error::Error;
+use crate::vector::Vector;
+
+/// The five [`Optimizer`](super::Optimizer) accessors every algorithm answers the same way,
+/// from its `ledger` and `bounds` fields; used inside each `impl Optimizer<N> for …` block.
+macro_rules! ledger_accessors {
+    () => {
+        fn best(&self) -> Option<$crate::optimizer::Best<N>> {
+            self.ledger.best()
+        }
+
+        fn pending(&self) -> Option<&$crate::optimizer::Vector<N>> {
+            self.ledger.pending()
+        }
+
+        fn evaluations(&self) -> u32 {
+            self.ledger.evaluations()
+        }
+
+        fn status(&self) -> $crate::optimizer::Status {
+            self.ledger.status()
+        }
+
+        fn bounds(&self) -> &$crate::optimizer::Bounds<N> {
+            &self.bounds
+        }
+    };
+}
+pub(crate) use ledger_accessors;
+
+/// The book-keeping every algorithm shares: the pending candidate, the evaluation count
+/// against the budget, the status, and the best (θ, cost) so far. Keeping it in one place makes the
+/// "rejected call changes nothing" rule hold the same way in every optimizer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub(crate) struct Ledger<const N: usize> {
+    pending: Option<Vector<N>>,
+    evaluations: u32,
+    budget: u32,
+    status: Status,
+    best: Option<Best<N>>,
+}
+
+impl<const N: usize> Ledger<N> {
+    /// A fresh ledger allowing `budget` evaluations.
+    pub(crate) const fn new(budget: u32) -> Self {
+        Self {
+            pending: None,
+            evaluations: 0,
+            budget,
+            status: Status::Running,
+            best: None,
+        }
+    }
+
+    /// The ask prologue: `Some` pending candidate to hand out again (ask is idempotent),
+    /// [`Error::Stopped`] once the search has stopped, `None` when a new candidate is due.
+    pub(crate) fn reissue(&self) -> Result<Option<Vector<N>>, Error> {
+        match self.pending {
+            Some(pending) => Ok(Some(pending)),
+            None if self.status != Status::Running => Err(Error::Stopped),
+            None => Ok(None),
+        }
+    }
+
+    /// The tell epilogue: a running search that has used its budget stops.
+    pub(crate) fn settle(&mut self) {
+        if self.status == Status::Running && self.budget_spent() {
+            self.status = Status::BudgetSpent;
+        }
+    }
+
+    /// Where the search stands.
+    pub(crate) fn status(&self) -> Status {
+        self.status
+    }
+
+    /// Stops the search (`Converged` or `BudgetSpent`).
+    pub(crate) fn stop(&mut self, status: Status) {
+        self.status = status;
+    }
+
+    /// Marks `theta` as handed out.
+    pub(crate) fn hand_out(&mut self, theta: Vector<N>) -> Vector<N> {
+        self.pending = Some(theta);
+        theta
+    }
+
+    /// Checks a `tell` before anything is changed; on success takes the pending candidate,
+    /// counts the evaluation and updates the best, returning the candidate.
+    pub(crate) fn accept(&mut self, cost: f32) -> Result<Vector<N>, Error> {
+        let theta = self.pending.ok_or(Error::NoPendingAsk)?;
+        if !cost.is_finite() {
+            return Err(Error::NonFinite("cost"));
+        }
+        self.pending = None;
+        self.evaluations = self.evaluations.saturating_add(1);
+        if self.best.is_none_or(|b| cost < b.cost) {
+            self.best = Some(Best { theta, cost });
+        }
+        Ok(theta)
+    }
+
+    pub(crate) fn pending(&self) -> Option<&Vector<N>> {
+        self.pending.as_ref()
+    }
+
+    pub(crate) fn evaluations(&self) -> u32 {
+        self.evaluations
+    }
+
+    pub(crate) fn budget_spent(&self) -> bool {
+        self.evaluations >= self.budget
+    }
+
+    pub(crate) fn best(&self) -> Option<Best<N>> {
+        self.best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ledger_rejects_without_change() {
+        let mut l = Ledger::<2>::new(3);
+        assert_eq!(l.accept(1.0), Err(Error::NoPendingAsk));
+        l.hand_out(Vector::from([0.5, 0.5]));
+        let before = l;
+        assert_eq!(l.accept(f32::NAN), Err(Error::NonFinite("cost")));
+        assert_eq!(l.accept(f32::NEG_INFINITY), Err(Error::NonFinite("cost")));
+        assert_eq!(l, before);
+        assert!(l.accept(2.0).is_ok());
+        assert_eq!(l.evaluations(), 1);
+        assert_eq!(l.best().map(|b| b.cost), Some(2.0));
+    }
+}
