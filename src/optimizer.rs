@@ -56,9 +56,9 @@ pub use two_phase::TwoPhase;
 // The shared vocabulary, also reachable from here (where it lived before 0.2.0).
 pub use crate::bounds::Bounds;
 pub use crate::error::Error;
+pub(crate) use crate::random::random_index;
 pub use crate::random::{normal_pair_f32, unit_f32};
 pub use crate::vector::Vector;
-pub(crate) use crate::random::random_index;
 pub(crate) use ledger::{Ledger, ledger_accessors};
 
 /// Where an optimizer is in its run.
@@ -112,4 +112,29 @@ pub trait Optimizer<const N: usize> {
 
     /// The box every candidate lies in.
     fn bounds(&self) -> &Bounds<N>;
+}
+
+/// Inserts `sample` into `kept`, sorted by `cost` (ties after the samples told before), if
+/// it is among the best `room` so far; the worst drops out when `kept` holds `room` already.
+/// Shared by the batch algorithms that keep only their elites of a batch.
+pub(crate) fn keep_ranked<T, const C: usize>(
+    kept: &mut heapless::Vec<T, C>,
+    room: usize,
+    sample: T,
+    cost: impl Fn(&T) -> f32,
+) {
+    let value = cost(&sample);
+    let rank = kept.partition_point(|s| cost(s) <= value);
+    if kept.len() >= room {
+        if rank >= kept.len() {
+            return;
+        }
+        kept.pop();
+    }
+    // len < room ≤ C here (callers keep room ≤ C), so the insertion cannot fail; and
+    // rank ≤ len always (a partition point), tested only so that `insert`'s assertion has
+    // no panic path.
+    if rank <= kept.len() {
+        let _ = kept.insert(rank, sample);
+    }
 }

@@ -1,9 +1,78 @@
 //! Helpers shared by the unit tests: one home instead of a copy in each test module.
 
+extern crate std;
+use std::vec::Vec;
+
+use proptest::prelude::*;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
+
+use crate::optimizer::{Best, Optimizer, Status};
+use crate::random::unit_f32;
+use crate::{Bounds, Error, Vector};
 
 /// The tests' RNG, seeded (xoshiro128++, as in the firmware examples).
 pub(crate) fn rng(seed: u64) -> Xoshiro128PlusPlus {
     Xoshiro128PlusPlus::seed_from_u64(seed)
+}
+
+/// Checks the call-order contract on `s`, a fresh optimizer with a budget of exactly 3:
+/// `tell` without `ask` is refused, a second `ask` repeats the pending candidate, a second
+/// `tell` is refused, the budget stops the search and `ask` then says so; the best is the
+/// first candidate (told 1.0, the others 2.0). Returns that first candidate.
+pub(crate) fn check_call_order<const N: usize, O: Optimizer<N>>(s: &mut O) -> Vector<N> {
+    let mut r = rng(0);
+    assert_eq!(s.tell(1.0), Err(Error::NoPendingAsk));
+    let first = s.ask(&mut r).unwrap();
+    assert_eq!(
+        s.ask(&mut r).unwrap(),
+        first,
+        "a second ask repeats the pending one"
+    );
+    assert_eq!(s.pending(), Some(&first));
+    s.tell(1.0).unwrap();
+    assert_eq!(s.tell(1.0), Err(Error::NoPendingAsk));
+    for _ in 0..2 {
+        s.ask(&mut r).unwrap();
+        s.tell(2.0).unwrap();
+    }
+    assert_eq!(s.status(), Status::BudgetSpent);
+    assert_eq!(s.evaluations(), 3);
+    assert_eq!(s.ask(&mut r), Err(Error::Stopped));
+    assert_eq!(
+        s.best().unwrap(),
+        Best {
+            theta: first,
+            cost: 1.0
+        }
+    );
+    first
+}
+
+/// The (candidate, cost) sequence of `s` from `seed` until it stops, with the cost
+/// `objective(θ)` plus noise `noise`·U[0, 1) drawn from the same RNG (so a run depends on the
+/// seed through both).
+pub(crate) fn trace<const N: usize, O: Optimizer<N>>(
+    mut s: O,
+    seed: u64,
+    noise: f32,
+    objective: impl Fn(&Vector<N>) -> f32,
+) -> Vec<(Vector<N>, f32)> {
+    let mut r = rng(seed);
+    let mut out = Vec::new();
+    while let Ok(t) = s.ask(&mut r) {
+        let cost = objective(&t) + noise * unit_f32(&mut r);
+        s.tell(cost).unwrap();
+        out.push((t, cost));
+    }
+    out
+}
+
+/// Boxes with corners in ±10³ and widths from `min_width` to 10³, for property tests.
+pub(crate) fn any_bounds<const N: usize>(min_width: f32) -> impl Strategy<Value = Bounds<N>> {
+    prop::array::uniform::<_, N>((-1e3f32..1e3, min_width..1e3)).prop_map(|pairs| {
+        let lower = Vector::from(pairs.map(|(lo, _)| lo));
+        let upper = Vector::from(pairs.map(|(lo, w)| lo + w));
+        Bounds::try_new(lower, upper).unwrap()
+    })
 }

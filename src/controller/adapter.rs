@@ -614,8 +614,14 @@ mod tests {
             Vector::<1>::repeat(1.0)
         );
         a.begin_episode(&mut r).unwrap();
-        assert_eq!(a.begin_episode(&mut r), Err(AdapterError::EpisodeInProgress));
-        assert_eq!(a.set_mode(Mode::Deploy), Err(AdapterError::EpisodeInProgress));
+        assert_eq!(
+            a.begin_episode(&mut r),
+            Err(AdapterError::EpisodeInProgress)
+        );
+        assert_eq!(
+            a.set_mode(Mode::Deploy),
+            Err(AdapterError::EpisodeInProgress)
+        );
         a.end_episode().unwrap();
         let bad = Adapter::try_new(
             *a.optimizer(),

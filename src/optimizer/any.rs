@@ -111,12 +111,8 @@ macro_rules! forward_optimizer {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum AnyOptimizer<
-    const N: usize,
-    const L: usize = 12,
-    const E: usize = 6,
-    const M: usize = 100,
-> {
+pub enum AnyOptimizer<const N: usize, const L: usize = 12, const E: usize = 6, const M: usize = 100>
+{
     /// [`CoordinateSearch`]: the local phase.
     Coordinate(CoordinateSearch<N>),
     /// [`ControlledRandomSearch`]: the global phase.
@@ -181,7 +177,9 @@ mod tests {
             CoordinateSearch::try_new(bounds, start, CoordinateConfig::DEFAULT)
                 .unwrap()
                 .into(),
-            Sracos::try_new(bounds, SracosConfig::DEFAULT).unwrap().into(),
+            Sracos::try_new(bounds, SracosConfig::DEFAULT)
+                .unwrap()
+                .into(),
             DiagonalCem::try_new(bounds, start, CemConfig::DEFAULT)
                 .unwrap()
                 .into(),

@@ -98,7 +98,7 @@ use heapless::Vec;
 use rand_core::RngCore;
 
 use super::ledger_accessors;
-use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, normal_pair_f32};
+use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, keep_ranked, normal_pair_f32};
 
 /// How the costs of a batch become the probabilities P_k of the update (paper section 3.3).
 /// Every scheme gives weights that are non-negative, sum to 1 and do not increase with cost.
@@ -412,19 +412,7 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
 
     /// Keeps `sample` if it is among the best `elite_count` of the batch so far.
     fn keep(&mut self, sample: Sample<N>) {
-        // After the samples that cost no more: ties rank in the order told.
-        let rank = self.elite.partition_point(|s| s.cost <= sample.cost);
-        if self.elite.len() >= self.elite_count {
-            if rank >= self.elite.len() {
-                return;
-            }
-            self.elite.pop();
-        }
-        // len < elite_count ≤ E here, so the insertion cannot fail; and rank ≤ len always
-        // (a partition point), tested only so that `insert`'s assertion has no panic path.
-        if rank <= self.elite.len() {
-            let _ = self.elite.insert(rank, sample);
-        }
+        keep_ranked(&mut self.elite, self.elite_count, sample, |s| s.cost);
     }
 
     /// Steps 3–5 of the module docs on the kept samples, then starts the next batch.
@@ -505,9 +493,8 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optimizer::Best;
+    use crate::testing::{any_bounds, check_call_order, rng, trace};
     use proptest::prelude::*;
-    use crate::testing::rng;
 
     fn weights_of(weighting: Weighting, sorted: &[f32], worst: f32) -> std::vec::Vec<f32> {
         let mut out = std::vec![0.0; sorted.len()];
@@ -790,23 +777,14 @@ mod tests {
     /// Checks: the same seed gives the same candidates and costs, another seed differs.
     #[test]
     fn identical_seeds_give_identical_runs() {
-        let trace = |seed: u64| {
-            let bounds = Bounds::<4>::uniform(-2.0, 2.0).unwrap();
-            let cfg = CemConfig {
-                max_evaluations: 300,
-                ..config(Weighting::PiBb { h: 10.0 }, 0.3)
-            };
-            let mut cem = DiagonalCem::<4, 8>::try_new(bounds, Vector::zeros(), cfg).unwrap();
-            let mut r = rng(seed);
-            let mut out = std::vec::Vec::new();
-            while let Ok(t) = cem.ask(&mut r) {
-                let cost = t.norm() + 0.01 * crate::optimizer::unit_f32(&mut r);
-                cem.tell(cost).unwrap();
-                out.push((t, cost));
-            }
-            assert_eq!(out.len(), 300);
-            out
+        let bounds = Bounds::<4>::uniform(-2.0, 2.0).unwrap();
+        let cfg = CemConfig {
+            max_evaluations: 300,
+            ..config(Weighting::PiBb { h: 10.0 }, 0.3)
         };
+        let cem = DiagonalCem::<4, 8>::try_new(bounds, Vector::zeros(), cfg).unwrap();
+        let trace = |seed: u64| trace(cem.clone(), seed, 0.01, |t| t.norm());
+        assert_eq!(trace(42).len(), 300);
         assert_eq!(trace(42), trace(42));
         assert_ne!(trace(42), trace(43));
     }
@@ -890,39 +868,8 @@ mod tests {
             ..CemConfig::DEFAULT
         };
         let mut s = DiagonalCem::<2, 2>::try_new(b, Vector::zeros(), c).unwrap();
-        let mut r = rng(0);
-        assert_eq!(s.tell(1.0), Err(Error::NoPendingAsk));
-        let first = s.ask(&mut r).unwrap();
-        assert_eq!(
-            s.ask(&mut r).unwrap(),
-            first,
-            "a second ask repeats the pending one"
-        );
-        assert_eq!(s.pending(), Some(&first));
-        s.tell(1.0).unwrap();
-        assert_eq!(s.tell(1.0), Err(Error::NoPendingAsk));
-        for _ in 0..2 {
-            s.ask(&mut r).unwrap();
-            s.tell(2.0).unwrap();
-        }
-        assert_eq!(s.status(), Status::BudgetSpent);
+        check_call_order(&mut s);
         assert_eq!((s.evaluations(), s.updates(), s.told_in_batch()), (3, 1, 1));
-        assert_eq!(s.ask(&mut r), Err(Error::Stopped));
-        assert_eq!(
-            s.best().unwrap(),
-            Best {
-                theta: first,
-                cost: 1.0
-            }
-        );
-    }
-
-    fn any_bounds() -> impl Strategy<Value = Bounds<4>> {
-        prop::array::uniform4((-1e3f32..1e3, 1e-3f32..1e3)).prop_map(|pairs| {
-            let lower = Vector::from(pairs.map(|(lo, _)| lo));
-            let upper = Vector::from(pairs.map(|(lo, w)| lo + w));
-            Bounds::try_new(lower, upper).unwrap()
-        })
     }
 
     fn any_weighting() -> impl Strategy<Value = Weighting> {
@@ -969,7 +916,7 @@ mod tests {
         /// never increases.
         #[test]
         fn candidates_in_bounds_variances_in_limits_bad_costs_change_nothing(
-            bounds in any_bounds(),
+            bounds in any_bounds::<4>(1e-3),
             frac in prop::array::uniform4(0.0f32..=1.0),
             weighting in any_weighting(),
             elite in 1usize..=6,

@@ -118,7 +118,7 @@ use nalgebra::{
 use rand_core::RngCore;
 
 use super::ledger_accessors;
-use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, normal_pair_f32};
+use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, keep_ranked, normal_pair_f32};
 
 /// Eigenvalues of C are floored at this fraction of the largest.
 const EIGEN_FLOOR: f32 = 1e-14;
@@ -518,28 +518,15 @@ where
         self.basis * self.scales.component_mul(z)
     }
 
-    /// Keeps `sample` if it is among the μ best of the generation so far.
+    /// Keeps `sample` if it is among the μ best of the generation so far (all L with
+    /// active weights).
     fn keep(&mut self, sample: Sample<N>) {
-        // After the samples that cost no more: ties rank in the order told.
-        let rank = self
-            .elite
-            .partition_point(|s| s.rank_cost <= sample.rank_cost);
         let room = if self.config.active {
             L
         } else {
             self.constants.mu
         };
-        if self.elite.len() >= room {
-            if rank >= self.elite.len() {
-                return;
-            }
-            self.elite.pop();
-        }
-        // len < μ ≤ L here, so the insertion cannot fail; rank ≤ len always (a partition
-        // point), tested only so that `insert`'s assertion has no panic path.
-        if rank <= self.elite.len() {
-            let _ = self.elite.insert(rank, sample);
-        }
+        keep_ranked(&mut self.elite, room, sample, |s| s.rank_cost);
     }
 
     /// Steps 2–6 of the module docs on the kept samples, then starts the next generation.
@@ -711,8 +698,8 @@ where
 mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
+    use crate::testing::{any_bounds, rng, trace};
     use proptest::prelude::*;
-    use crate::testing::rng;
 
     fn config(initial_sigma: f32, max_evaluations: u32) -> CmaesConfig {
         CmaesConfig {
@@ -1212,18 +1199,9 @@ mod tests {
     /// Checks: the same seed gives the same candidates, another seed differs.
     #[test]
     fn identical_seeds_give_identical_runs() {
-        let trace = |seed: u64| {
-            let bounds = Bounds::<5>::uniform(-2.0, 2.0).unwrap();
-            let mut cma =
-                Cmaes::<5, 8>::try_new(bounds, Vector::zeros(), config(0.3, 200)).unwrap();
-            let mut r = rng(seed);
-            let mut out = std::vec::Vec::new();
-            while let Ok(t) = cma.ask(&mut r) {
-                cma.tell(t.norm()).unwrap();
-                out.push(t);
-            }
-            out
-        };
+        let bounds = Bounds::<5>::uniform(-2.0, 2.0).unwrap();
+        let cma = Cmaes::<5, 8>::try_new(bounds, Vector::zeros(), config(0.3, 200)).unwrap();
+        let trace = |seed: u64| trace(cma.clone(), seed, 0.0, |t| t.norm());
         assert_eq!(trace(42), trace(42));
         assert_ne!(trace(42), trace(43));
     }
@@ -1261,15 +1239,6 @@ mod tests {
         );
     }
 
-    fn any_bounds() -> impl Strategy<Value = Bounds<4>> {
-        // Widths log-uniform over 10⁻² … 10³⁰.
-        prop::array::uniform4((-1e3f32..1e3, -2.0f32..30.0)).prop_map(|pairs| {
-            let lower = Vector::from(pairs.map(|(lo, _)| lo));
-            let upper = Vector::from(pairs.map(|(lo, e)| lo + libm::powf(10.0, e)));
-            Bounds::try_new(lower, upper).unwrap()
-        })
-    }
-
     proptest! {
         /// Checks, for random boxes (widths from 1e-2 to 1e30), starts, configurations and
         /// cost sequences (any f32, NaN and infinities included): every candidate is inside
@@ -1277,7 +1246,7 @@ mod tests {
         /// σ stays in (0, max_sigma]; the best cost never increases.
         #[test]
         fn candidates_in_bounds_and_bad_costs_change_nothing(
-            bounds in any_bounds(),
+            bounds in any_bounds::<4>(1e-3),
             frac in prop::array::uniform4(0.0f32..=1.0),
             sigma in 1e-6f32..5.0,
             penalty in prop_oneof![Just(0.0f32), 1e-6f32..1e6],

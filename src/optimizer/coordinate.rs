@@ -443,8 +443,8 @@ impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
 mod tests {
     use super::*;
     use crate::optimizer::Best;
+    use crate::testing::{any_bounds, check_call_order, rng, trace};
     use proptest::prelude::*;
-    use crate::testing::rng;
 
     /// Runs the search to its stop (or `budget` evaluations) and returns the best.
     fn minimise<const N: usize>(
@@ -573,20 +573,10 @@ mod tests {
     fn identical_seeds_give_identical_runs() {
         // A noisy objective draws its noise from the caller's RNG: the same seed must give
         // the same sequence of candidates and costs, another seed a different one.
-        let trace = |seed: u64| {
-            let bounds = Bounds::<3>::uniform(-2.0, 2.0).unwrap();
-            let mut s =
-                CoordinateSearch::try_new(bounds, Vector::zeros(), config(0.5, 1e-4)).unwrap();
-            let mut r = rng(seed);
-            let mut out = Vec::new();
-            while let Ok(t) = s.ask(&mut r) {
-                let cost = ellipsoid(&t) + 0.01 * crate::optimizer::unit_f32(&mut r);
-                s.tell(cost).unwrap();
-                out.push((t, cost));
-            }
-            assert!(out.len() > 20);
-            out
-        };
+        let bounds = Bounds::<3>::uniform(-2.0, 2.0).unwrap();
+        let s = CoordinateSearch::try_new(bounds, Vector::zeros(), config(0.5, 1e-4)).unwrap();
+        let trace = |seed: u64| trace(s, seed, 0.01, ellipsoid);
+        assert!(trace(42).len() > 20);
         assert_eq!(trace(42), trace(42));
         assert_ne!(trace(42), trace(43));
     }
@@ -651,25 +641,7 @@ mod tests {
             ..CoordinateConfig::DEFAULT
         };
         let mut s = CoordinateSearch::try_new(b, Vector::zeros(), c).unwrap();
-        let mut r = rng(0);
-        assert_eq!(s.tell(1.0), Err(Error::NoPendingAsk));
-        let first = s.ask(&mut r).unwrap();
-        assert_eq!(
-            s.ask(&mut r).unwrap(),
-            first,
-            "a second ask repeats the pending one"
-        );
-        assert_eq!(s.pending(), Some(&first));
-        s.tell(1.0).unwrap();
-        assert_eq!(s.tell(1.0), Err(Error::NoPendingAsk));
-        for _ in 0..2 {
-            s.ask(&mut r).unwrap();
-            s.tell(2.0).unwrap();
-        }
-        assert_eq!(s.status(), Status::BudgetSpent);
-        assert_eq!(s.evaluations(), 3);
-        assert_eq!(s.ask(&mut r), Err(Error::Stopped));
-        assert_eq!(s.best().unwrap().cost, 1.0);
+        check_call_order(&mut s);
     }
 
     #[test]
@@ -696,21 +668,13 @@ mod tests {
         assert_eq!(s.ask(&mut r), Err(Error::Stopped));
     }
 
-    fn any_bounds() -> impl Strategy<Value = Bounds<4>> {
-        prop::array::uniform4((-1e3f32..1e3, 1e-3f32..1e3)).prop_map(|pairs| {
-            let lower = Vector::from(pairs.map(|(lo, _)| lo));
-            let upper = Vector::from(pairs.map(|(lo, w)| lo + w));
-            Bounds::try_new(lower, upper).unwrap()
-        })
-    }
-
     proptest! {
         /// Checks, for random boxes, starts, configs and cost sequences (any f32, NaN and
         /// infinities included): every candidate is inside the box, a non-finite cost is an
         /// error that leaves the whole state unchanged, and the best cost never increases.
         #[test]
         fn candidates_in_bounds_and_bad_costs_change_nothing(
-            bounds in any_bounds(),
+            bounds in any_bounds::<4>(1e-3),
             frac in prop::array::uniform4(0.0f32..=1.0),
             step in 1e-3f32..1e3,
             contraction in 0.05f32..0.95,

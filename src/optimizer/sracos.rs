@@ -809,8 +809,8 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::{any_bounds, rng};
     use proptest::prelude::*;
-    use crate::testing::rng;
 
     fn sracos<const N: usize, const K: usize, const M: usize>(
         config: SracosConfig,
@@ -1206,14 +1206,6 @@ mod tests {
         );
     }
 
-    fn any_bounds() -> impl Strategy<Value = Bounds<3>> {
-        prop::array::uniform3((-1e3f32..1e3, 1e-2f32..1e3)).prop_map(|pairs| {
-            let lower = Vector::from(pairs.map(|(lo, _)| lo));
-            let upper = Vector::from(pairs.map(|(lo, w)| lo + w));
-            Bounds::try_new(lower, upper).unwrap()
-        })
-    }
-
     fn any_replacement() -> impl Strategy<Value = Replacement> {
         prop_oneof![
             Just(Replacement::Worst),
@@ -1229,7 +1221,7 @@ mod tests {
         /// the whole optimizer unchanged; the best cost never increases.
         #[test]
         fn sracos_invariants(
-            bounds in any_bounds(),
+            bounds in any_bounds::<3>(1e-2),
             replacement in any_replacement(),
             seed in any::<u64>(),
             costs in prop::collection::vec(proptest::num::f32::ANY, 1..200),
@@ -1265,7 +1257,7 @@ mod tests {
         /// Checks the same for RACOS, with the positive set checked after each batch.
         #[test]
         fn racos_invariants(
-            bounds in any_bounds(),
+            bounds in any_bounds::<3>(1e-2),
             seed in any::<u64>(),
             costs in prop::collection::vec(proptest::num::f32::ANY, 1..200),
         ) {
