@@ -10,11 +10,11 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use ctrl_adapt::controller::{Adapter, CorrectedPd, PeriodicPd, StateFeatures};
+use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::optimizer::{
     Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
     DiagonalCem, Optimizer, Sracos, SracosConfig, Vector,
 };
-use ctrl_adapt::cost::SurveyCost;
 use host_tests::{functions::sphere, run};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;

@@ -359,8 +359,7 @@ fn main() {
                 V::from_fn(|i, _| f64::from(theta[i]) / half()[i])
             }
             "env" => {
-                let theta: Vec<f64> =
-                    hopping::theta_from_env().expect("CMAES_THETA is not set");
+                let theta: Vec<f64> = hopping::theta_from_env().expect("CMAES_THETA is not set");
                 let start = V::from_fn(|i, _| theta[i] / half()[i]);
                 row("given θ (start)", 0, f64::NAN, theta_of(&start), "");
                 start

@@ -124,8 +124,7 @@ fn main() {
         let start = match f[0] {
             "zero" => Vector::<P>::zeros(),
             "env" => {
-                let theta: Vec<f32> =
-                    hopping::theta_from_env().expect("CMAES_THETA is not set");
+                let theta: Vec<f32> = hopping::theta_from_env().expect("CMAES_THETA is not set");
                 let theta = Vector::<P>::from_column_slice(&theta);
                 row("given θ (start)", 0, f32::NAN, theta, "");
                 theta
@@ -149,8 +148,7 @@ fn main() {
             &[1001]
         };
         let evaluations = budget.div_ceil(courses.len() as u32);
-        let cma =
-            hopping::fresh_cmaes(start, sigma0, evaluations, active).expect("valid config");
+        let cma = hopping::fresh_cmaes(start, sigma0, evaluations, active).expect("valid config");
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
         let t = Instant::now();
         let report = |cma: &Cmaes<P, LAMBDA>, episodes: u32| {

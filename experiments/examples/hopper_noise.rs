@@ -14,8 +14,8 @@
 //! experiments use 1).
 
 use ctrl_adapt::optimizer::Vector;
-use host_tests::hopper::HopperConfig;
 use experiments::hopping::{self, P, evaluate, plant_for};
+use host_tests::hopper::HopperConfig;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 

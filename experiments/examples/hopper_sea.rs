@@ -23,11 +23,11 @@
 //! unseen courses).
 
 use ctrl_adapt::optimizer::{Optimizer, Vector};
-use host_tests::hopper::{HopperConfig, NominalHopping, SeaConfig};
 use experiments::hopping::{
     self, HopEpisode, LEARNING_EPISODES, P, TRAINING_SEED, coordinate_search, evaluate_for,
     plant_for, run_episode,
 };
+use host_tests::hopper::{HopperConfig, NominalHopping, SeaConfig};
 use host_tests::hopper_tuning;
 use host_tests::median;
 use rand_core::SeedableRng;

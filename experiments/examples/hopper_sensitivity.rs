@@ -48,8 +48,7 @@ fn name(i: usize) -> String {
 
 /// Apex heights (m, 3 decimals) of `theta` on course `seed`, and whether it collapsed.
 fn apexes(theta: Vector<P>, seed: u64) -> String {
-    let e =
-        hopping::episode_on(theta, seed, hopping::spread_apex_config()).expect("episode");
+    let e = hopping::episode_on(theta, seed, hopping::spread_apex_config()).expect("episode");
     let a: Vec<_> = e.apexes.iter().map(|h| format!("{h:.3}")).collect();
     format!(
         "{}{}",

@@ -4,15 +4,19 @@
 //! (`host_tests::hopper_task`), so a study imports one module.
 
 use ctrl_adapt::controller::AdapterError;
-use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
 use ctrl_adapt::cost::ApexConfig;
+use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
 use host_tests::hopper::NominalHopping;
 pub use host_tests::hopper_task::*;
 use rand_core::{RngCore, SeedableRng};
 
 /// One deployed episode of `theta` (nominal gait [`NominalHopping::TUNED`], cost `apex`) on
 /// the block course of `seed`, not recorded.
-pub fn episode_on(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<HopEpisode, AdapterError> {
+pub fn episode_on(
+    theta: Vector<P>,
+    seed: u64,
+    apex: ApexConfig,
+) -> Result<HopEpisode, AdapterError> {
     let mut unused = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0);
     evaluate_with(
         theta,
@@ -209,7 +213,11 @@ pub const VALIDATION_COURSES: std::ops::RangeInclusive<u64> = 20_001..=20_010;
 
 /// The mean told cost ([`told_cost`] with `apex`) of `theta` over [`VALIDATION_COURSES`],
 /// the episodes on up to `threads` threads.
-pub fn validation_cost(theta: Vector<P>, apex: ApexConfig, threads: usize) -> Result<f64, AdapterError> {
+pub fn validation_cost(
+    theta: Vector<P>,
+    apex: ApexConfig,
+    threads: usize,
+) -> Result<f64, AdapterError> {
     let thetas: Vec<_> = VALIDATION_COURSES.map(|_| theta).collect();
     let costs = parallel_costs(&thetas, *VALIDATION_COURSES.start(), apex, threads)?;
     Ok(costs.iter().map(|&c| f64::from(c)).sum::<f64>() / costs.len() as f64)

@@ -228,8 +228,5 @@ fn early_stopping_keeps_the_best_scored_mean_and_leaves_the_search_alone() {
     let best = costs.iter().copied().fold(f64::INFINITY, f64::min);
     assert!([14, 28, 35].contains(&kept.episode));
     assert_eq!(kept.validation_cost, best);
-    assert_eq!(
-        hopping::validation_cost(kept.theta, apex, 1).unwrap(),
-        best
-    );
+    assert_eq!(hopping::validation_cost(kept.theta, apex, 1).unwrap(), best);
 }

@@ -10,12 +10,14 @@
 //! One tick observes the state the command is computed from (before the step): the survey
 //! reward sees the positions at t = 0, 0.1, …, 23.9 s.
 
-use ctrl_adapt::controller::{Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode};
+use ctrl_adapt::controller::{
+    Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode,
+};
+use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::optimizer::{
     Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Error,
     Optimizer, Vector,
 };
-use ctrl_adapt::cost::SurveyCost;
 use rand_core::RngCore;
 
 use crate::Episodic;

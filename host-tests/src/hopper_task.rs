@@ -28,13 +28,11 @@
 //! whether the previous step commanded a torque at its limit or ended in a joint stop.
 
 use ctrl_adapt::controller::{
-    Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode, LinearPolicy, Pd, PeriodicPd, PeriodicRbf,
-};
-use ctrl_adapt::optimizer::{
-    Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer,
-    Vector,
+    Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, LinearPolicy, Mode, Pd,
+    PeriodicPd, PeriodicRbf,
 };
 use ctrl_adapt::cost::{ApexConfig, ApexHeightCost, HopSample};
+use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector};
 use nalgebra::{SMatrix, SVector};
 use rand_core::RngCore;
 
@@ -493,4 +491,3 @@ pub fn evaluate_with<G: RngCore>(
     runner.begin_episode(theta, Mode::Deploy)?;
     drive(&mut runner, hopper, record)
 }
-

@@ -4,9 +4,7 @@
 //! tasks that drive them through the library's adapter: [`auv_task`] and [`hopper_task`];
 //! the demo's figures: [`plots`].
 
-use ctrl_adapt::controller::{
-    Adapter, AdapterError, Controller, EpisodeReport, EpisodeRunner,
-};
+use ctrl_adapt::controller::{Adapter, AdapterError, Controller, EpisodeReport, EpisodeRunner};
 use ctrl_adapt::cost::Shaper;
 use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;

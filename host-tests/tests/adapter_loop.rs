@@ -4,11 +4,11 @@
 use ctrl_adapt::controller::{
     Adapter, AdapterConfig, CorrectedPd, LinearPolicy, Mode, Pd, StateFeatures,
 };
+use ctrl_adapt::cost::QuadraticCost;
 use ctrl_adapt::optimizer::{
     Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Optimizer,
     TwoPhase, Vector,
 };
-use ctrl_adapt::cost::QuadraticCost;
 use host_tests::double_integrator::DoubleIntegrator;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;

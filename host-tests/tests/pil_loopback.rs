@@ -7,12 +7,12 @@ use std::collections::VecDeque;
 use std::io;
 use std::time::Duration;
 
+use auv_survey::{self as auv, AuvLearner, Report};
+use ctrl_adapt::controller::Mode;
 use host_tests::auv::AuvConfig;
 use host_tests::pil::{
     AuvPlant, Fault, FaultPlan, Link, PilPlant, RunConfig, reference_run, run_episodes, wire,
 };
-use ctrl_adapt::controller::Mode;
-use auv_survey::{self as auv, AuvLearner, Report};
 use pil_link::{Frame, FrameReader, Session};
 
 type Learner = AuvLearner<ctrl_adapt::CoordinateSearch<{ auv::P }>>;

@@ -38,12 +38,12 @@ use ctrl_adapt::controller::{
     Adapter, AdapterConfig, Controller as _, CorrectedPd, EpisodeReport, LinearPolicy, Mode, Pd,
     StateFeatures,
 };
+use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::optimizer::{
     CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem,
     Optimizer, Sracos, SracosConfig, Weighting,
 };
 use ctrl_adapt::{Bounds, Error, Vector};
-use ctrl_adapt::cost::SurveyCost;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -450,10 +450,7 @@ mod tests {
         let best = l.adapter().optimizer().best().unwrap();
         assert_eq!(theta.as_slice(), best.theta.as_slice());
         l.end_episode(&mut report);
-        assert_eq!(
-            Report::read(&report).unwrap().mode,
-            Some(Mode::Deploy)
-        );
+        assert_eq!(Report::read(&report).unwrap().mode, Some(Mode::Deploy));
     }
 
     /// Checks: a report of the wrong length does not decode.

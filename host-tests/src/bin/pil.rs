@@ -27,15 +27,15 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
+use auv_survey::{self as auv, AuvLearner, Report, SEED};
 use ctrl_adapt::controller::Controller as _;
+use ctrl_adapt::controller::Mode;
 use ctrl_adapt::optimizer::AnyOptimizer;
 use ctrl_adapt::optimizer::{Optimizer, Vector};
 use host_tests::auv::AuvConfig;
 use host_tests::pil::{
     AuvPlant, EpisodeRecord, FaultPlan, PilPlant, Qemu, RunConfig, reference_run, run_episodes,
 };
-use ctrl_adapt::controller::Mode;
-use auv_survey::{self as auv, AuvLearner, Report, SEED};
 
 /// Tolerance between the PIL run and the pure-host reference, on every episode return
 /// (m or s: |a − b| ≤ tolerance · max(1, |b|)). f32 on the target vs f32 on the host: both
@@ -179,7 +179,8 @@ fn report_of(values: &[f32]) -> Report {
 }
 
 /// Any of the PIL firmwares' optimizers, as one type for the host's replay.
-type AnyAuvOptimizer = AnyOptimizer<{ auv::P }, { auv::CEM_SAMPLES }, { auv::CEM_ELITE }, { auv::CRS_POINTS }>;
+type AnyAuvOptimizer =
+    AnyOptimizer<{ auv::P }, { auv::CEM_SAMPLES }, { auv::CEM_ELITE }, { auv::CRS_POINTS }>;
 
 /// The firmware's learner over `optimizer`, as `examples/firmware/src/bin/pil*.rs` build it.
 fn learner<O: Optimizer<{ auv::P }>>(
