@@ -259,7 +259,7 @@ impl Default for ApexConfig {
 /// learned policy by its apex *fluctuation*, and when a new block sequence is drawn every
 /// episode the mean square alone ranks policies mostly by how hard the episode's blocks were
 /// and by their energy; weighting the worst case of the episode aims the search at the
-/// variation itself (docs/experiments.md, fourth round).
+/// variation itself.
 ///
 /// An apex is the top of a flight: the vertical velocity changes sign from + to − with the
 /// body above `min_apex`. The squared deviation is in m², so a 5 cm spread of apexes costs

@@ -1,5 +1,5 @@
 //! One of the attempts at the hopping target (apex spread ≤ 1.5 cm on unseen courses) that
-//! did NOT reach it, kept to reproduce the figures of docs/experiments.md ("What was tried"):
+//! did NOT reach it, kept to reproduce the figures of findings/hopping.md ("What was tried"):
 //!
 //! ```text
 //! cargo run --release -p experiments --example hopper_attempts   # ≈ 4–6 min

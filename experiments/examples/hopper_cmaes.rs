@@ -1,5 +1,5 @@
 //! Diagnostic (host only, not library code): is the hopping plateau (training cost
-//! ≈ 1.6–1.8e-4, apex spread ≈ 2 cm, see docs/experiments.md "Hopping leg") a limit of our
+//! ≈ 1.6–1.8e-4, apex spread ≈ 2 cm, see findings/hopping.md "Hopping leg") a limit of our
 //! axis-aligned / diagonal optimizers on a rotated, ill-conditioned ridge, or a limit of the
 //! policy and plant? A full-covariance CMA-ES answers it.
 //!

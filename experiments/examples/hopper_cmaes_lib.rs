@@ -1,5 +1,5 @@
 //! The hopping leg learned with the **library's** [`Cmaes`] (f32, `Cmaes<31, 14>`), to check
-//! that it reproduces the host-only f64 diagnostic `hopper_cmaes.rs` (docs/cmaes.md).
+//! that it reproduces the host-only f64 diagnostic `hopper_cmaes.rs` (findings/hopping.md).
 //!
 //! ```text
 //! cargo run --release -p experiments --example hopper_cmaes_lib -- [RUN ...]
@@ -31,7 +31,7 @@
 //! validation courses 20 001–20 010 (mean told cost; `MISSING_HOP` overrides the cost per
 //! missing hop) and the best is printed as the run's "kept by validation" row (early
 //! stopping); after several runs, the run with the lowest validation cost.
-//! The rows printed are those of docs/cmaes.md's table: best objective, the plain cost on
+//! The rows printed are those of findings/hopping.md's table: best objective, the plain cost on
 //! course 1001 split into apex term + rest, training spread, unseen median / max (courses
 //! 10 001–10 005), stability; plus σ and the axis ratio.
 //!

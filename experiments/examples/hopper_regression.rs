@@ -1,4 +1,4 @@
-//! Hop-to-hop structure of the learned hopping policy (docs/experiments.md, "What the learned
+//! Hop-to-hop structure of the learned hopping policy (findings/hopping.md, "What the learned
 //! policy does, hop to hop"):
 //!
 //! ```text

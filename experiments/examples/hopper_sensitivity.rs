@@ -13,7 +13,7 @@
 //!
 //! `STEP` defaults to 0.01 (0.005 rad of a knee-reference weight, 0.28 N·m/rad of a stiffness
 //! weight, 0.01 N·m·s/rad of a damping weight, 1 ms of the period). A move that leaves the
-//! box is not run (`-`). docs/experiments.md (fifth round) reads the output.
+//! box is not run (`-`). `findings/hopping.md` reads the output.
 
 use ctrl_adapt::optimizer::Vector;
 use experiments::hopping::{self, K, P, told_cost};

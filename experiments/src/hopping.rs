@@ -59,7 +59,7 @@ pub fn spreads_on(
 /// The unseen courses of `tests/hopper_experiments.rs`.
 pub const UNSEEN_COURSES: std::ops::RangeInclusive<u64> = 10_001..=10_005;
 
-/// A Markdown table row for the fixed policy `theta` (the tables of docs/cmaes.md): `label`,
+/// A Markdown table row for the fixed policy `theta` (the tables of findings/hopping.md): `label`,
 /// `episodes`, `cost`, the plain cost on the training course split into its apex term and
 /// the rest (energy, limits, missing hops), the apex spread (cm) on the training course, the
 /// median and max over [`UNSEEN_COURSES`], whether it hops stably on all of them, `extra`.
@@ -106,8 +106,8 @@ pub const FRESH_COURSES: u64 = 100_000;
 /// [`FreshCmaes`] from `start` with σ₀ = `sigma0` (relative to each half-range of
 /// [`bounds`]), box penalty 0.01 (≈ the cost scale: a sample 0.1 half-range outside the box
 /// costs 10⁻⁴), tolerance 10⁻⁶, a budget of `evaluations` (the CMA-ES examples' settings),
-/// and active weights if `active` ([`CmaesConfig::active`]: off in the runs of sessions 2
-/// and 3, on in session 4's; docs/cmaes.md).
+/// and active weights if `active` ([`CmaesConfig::active`]: off by default; see
+/// `findings/hopping.md`).
 pub fn fresh_cmaes(
     start: Vector<P>,
     sigma0: f32,

@@ -104,7 +104,7 @@ fn show(first: Option<usize>) -> String {
 /// * from the global best it is better from the first episodes: the best J over the first
 ///   10 episodes beats the one from W = 0.
 ///
-/// Prints the per-seed table and the medians (the figures in docs/experiments.md).
+/// Prints the per-seed table and the medians (the figures in findings/auv.md).
 #[test]
 fn auv_two_phase_experiment() {
     let runs: Vec<(u64, SeedRun)> = SEEDS.map(|s| (s, run_seed(s))).collect();

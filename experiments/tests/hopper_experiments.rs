@@ -11,12 +11,12 @@
 //! sequence of seed 1001, replayed: common random numbers). Evaluation: the initial and the
 //! learned policy on 5 courses never used in learning (seeds 10 001–10 005).
 //!
-//! Also checks that the fresh-course CMA-ES learner of docs/experiments.md (fourth round;
-//! `hopping::learn_on_fresh_courses`, 12 000 episodes per run: not run here), which runs
+//! Also checks that the fresh-course CMA-ES learner of `findings/hopping.md`
+//! (`hopping::learn_on_fresh_courses`, 12 000 episodes per run: not run here), which runs
 //! a generation's episodes on several threads, is the sequential run through a learning
 //! `Adapter`, bit for bit. That learner reaches the paper's ≈ 1 cm on about one run in four
 //! (12 000 episodes) to one in two (20 000), with active weights on four runs in sixteen at
-//! 12 000 (docs/cmaes.md, session 4); no test asserts it (a seed that happens to pass would break
+//! 12 000; no test asserts it (a seed that happens to pass would break
 //! with any change to the random streams).
 
 #![cfg(not(debug_assertions))]
@@ -29,7 +29,7 @@ use experiments::hopping::{
     learn_on_fresh_courses, plant, run_episode, spread_apex_config, training_course,
 };
 
-/// σ₀ of the fresh-course CMA-ES runs of docs/experiments.md (relative to the half-ranges).
+/// σ₀ of the fresh-course CMA-ES runs of findings/hopping.md (relative to the half-ranges).
 const FRESH_SIGMA0: f32 = 0.3;
 use host_tests::median;
 use rand_core::SeedableRng;
@@ -93,7 +93,7 @@ fn spreads(episodes: &[HopEpisode]) -> Vec<f64> {
 ///   initial policy's median (measured 2.1–2.4 cm, median 2.2 cm against 7.6 cm).
 ///
 /// The paper's "about 1 cm" (the issue's ≤ 1.5 cm) is NOT reached with the coordinate
-/// search: see docs/experiments.md for what was tried.
+/// search: see findings/hopping.md for what was tried.
 #[test]
 fn learning_reduces_the_apex_spread_and_keeps_hopping() {
     let before = evaluations(Vector::zeros());

@@ -1,5 +1,5 @@
-//! The sweep of issue 6: algorithm × plant, episodes to threshold and final cost, median over
-//! 10 seeds, printed as a markdown table (the one in docs/experiments.md). Every run goes
+//! The sweep: algorithm × plant, episodes to threshold and final cost, median over
+//! 10 seeds, printed as a markdown table (the one in findings/sweep.md). Every run goes
 //! through the library's `Adapter` with the task's controller and shaper; only the optimizer
 //! changes. Release only (compiled out of debug test builds):
 //!

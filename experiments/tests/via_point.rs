@@ -99,7 +99,7 @@ fn every_weighting_learns_the_via_point_task() {
 /// adaptation (PI²-CMA: floor 10²·I after each update, as in the paper) and without (PI²,
 /// Σ = λ_init·I throughout).
 ///
-/// Checks (the values these seeds give are in docs/cem.md, with two other seed sets):
+/// Checks (the values these seeds give are in findings/via-point-arm.md, with two other seed sets):
 /// * sensitivity: the ratio between the largest and the smallest per-λ_init mean final
 ///   cost is below 10 with adaptation and above 100 without (these seeds: 3.6 and 423;
 ///   seeds 100..105 and 200..205: 3.6 / 364 and 5.8 / 287);

@@ -37,7 +37,7 @@
 //!   via-point term by 10⁸ against per-time-step acceleration costs. We use
 //!   J(θ) = [`VIA_WEIGHT`]·‖p(0.3) − (0.5, 0.5)‖² + ∫₀^τ Σ_d (D+1−d) ä_d² / Σ_d (D+1−d) dt,
 //!   i.e. (24) integrated over time with the δ scaled by [`VIA_WEIGHT`] = 10⁸: the start
-//!   costs 6.3·10⁶, the learned movements (`docs/cem.md`) cost 10³–10⁴ and miss the via
+//!   costs 6.3·10⁶, the learned movements (`experiments/findings/via-point-arm.md`) cost 10³–10⁴ and miss the via
 //!   point by a few millimetres, where the acceleration term matters again. Only the ratio
 //!   of the two terms matters to the optimizers: CEM and CMA-ES weights are rank based and
 //!   PI-BB normalises costs by their range.

@@ -1,5 +1,6 @@
 //! AUV survey plant: a Girona 500-like vehicle crossing a water current to a target on the sea
-//! bed (Leonetti et al. 2012, section 5; `shared/papers/leonetti2012-crs-and-coordinate-line-search.txt`).
+//! bed (Leonetti, Kormushev and Sagratella 2012, "Combining local and global direct
+//! derivative-free optimization for reinforcement learning", section 5).
 //!
 //! # The scene
 //! World frame x, y horizontal, z depth (positive down, sea surface at z = 0). Below

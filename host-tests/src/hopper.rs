@@ -1,6 +1,6 @@
 //! Hopping-leg plant: a ScarlETH-like articulated leg hopping in place over ground whose height
-//! changes unseen during flight (Hwangbo et al., ROCK*, section IV;
-//! `shared/papers/hwangbo-rockstar.txt`).
+//! changes unseen during flight (Hwangbo et al., "ROCK*: Efficient black-box optimization
+//! for policy learning", Humanoids 2014, section IV).
 //!
 //! # Model
 //! Three degrees of freedom, as on the paper's test stand: the main body slides on a vertical

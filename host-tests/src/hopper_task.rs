@@ -12,7 +12,7 @@
 //! eq. 6 of the paper, τ = k_p (x_d − x) + k_d (ẋ_d − ẋ), with the reference rate ẋ_d,
 //! while `NominalHopping::torques` was tuned with −k_d ẋ. The extra k_d ẋ_d (up to
 //! 0.6 · 6.4 ≈ 3.8 N·m at the knee) acts like a reference advanced by k_d/k_p = 20 ms; the
-//! measured effect on the hopping is in docs/experiments.md (it keeps hopping stably at the
+//! measured effect on the hopping is in experiments/findings/hopping.md (it keeps hopping stably at the
 //! set height, so no retuning was needed).
 //!
 //! # The cost
@@ -189,15 +189,14 @@ pub fn apex_config() -> ApexConfig {
 
 /// Weight of the squared apex spread in [`spread_apex_config`]: a 2 cm spread costs 4·10⁻³,
 /// 1 cm 10⁻³, against ≈ 6·10⁻⁵ of energy and 1–5·10⁻⁵ of mean square deviation for policies
-/// at that level (the weight of the diagnostic's shaped cost, docs/cmaes.md).
+/// at that level (the weight of the diagnostic's shaped cost, experiments/findings/hopping.md).
 pub const SPREAD_WEIGHT: f32 = 10.0;
 
 /// [`apex_config`] aimed at the apex variation, for learning on a new course every episode
 /// ([`learn_on_fresh_courses`]): the first [`TRANSIENT_HOPS`] apexes (the drop from rest)
 /// left out of the apex terms, plus [`SPREAD_WEIGHT`] · (max − min apex)²; the other
 /// weights as in [`apex_config`]. (0.05 per missing hop instead of 0.01, tried against
-/// policies dropping hops below the 0.45 m threshold, did worse: docs/experiments.md,
-/// fourth round.)
+/// policies dropping hops below the 0.45 m threshold, did worse; experiments/findings/hopping.md.)
 pub fn spread_apex_config() -> ApexConfig {
     ApexConfig {
         transient_hops: TRANSIENT_HOPS as u32,
@@ -349,7 +348,7 @@ impl HopEpisode {
     /// Stable hopping at the set height: no collapse, at least 15 hops (of about 19) in the
     /// 12 s, and a mean apex within [`STABLE_APEX_BAND`] of [`SET_HEIGHT`]. The band rules
     /// out the low, fast gait (0.40–0.47 m apexes, 28–33 hops in 12 s) that some learned
-    /// policies fall into on the series-elastic leg (docs/hopper_sea.md): counting hops
+    /// policies fall into on the series-elastic leg (experiments/findings/hopping.md): counting hops
     /// alone called it stable.
     pub fn hops_stably(&self) -> bool {
         !self.collapsed

@@ -1,5 +1,6 @@
 //! Cross-entropy method with a diagonal Gaussian and the three weightings compared by
-//! Stulp & Sigaud 2012 (`shared/papers/stulp-sigaud2012-pi2-cem-cma-fr.txt`): CEM, CMA-ES and
+//! Stulp & Sigaud 2012 ("Path integral policy improvement with covariance matrix
+//! adaptation", ICML 2012): CEM, CMA-ES and
 //! PI² ("PI-BB" when PI²'s weighting is applied to whole episodes), all read as
 //! *probability-weighted averaging*.
 //!
@@ -92,7 +93,7 @@
 //! the weighted variance estimate from a few samples is unbiased but its logarithm drifts
 //! down, and with the noise-free sample often the best in high dimension the variances
 //! collapse within a few updates (on the shifted 100-D sphere the search then stalls at
-//! cost 3.1 instead of reaching 0.03; `docs/cem.md`).
+//! cost 3.1 instead of reaching 0.03; `experiments/findings/via-point-arm.md`).
 
 use heapless::Vec;
 use rand_core::RngCore;

@@ -86,7 +86,7 @@
 //!   thinner) they reach 10⁻⁶ with 56 % of the evaluations (unit test
 //!   `active_weights_learn_a_thin_axis_sooner`). On the hopping leg they did not raise the
 //!   share of learning runs that reach the paper's apex variation (4 of 16 seeds, against 2
-//!   of 8 without; docs/cmaes.md, session 4).
+//!   of 8 without).
 //! * **Ties** in the ranking rank in the order told.
 //! * **Normal draws.** Marsaglia's polar method in f32 ([`normal_pair_f32`]), truncated at
 //!   radius 7.99.

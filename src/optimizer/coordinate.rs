@@ -1,5 +1,7 @@
 //! Coordinate search with line-search expansions (Lucidi & Sciandrone), the local phase of
-//! Leonetti et al. 2012, section 4.2.1 (`shared/papers/leonetti2012-crs-and-coordinate-line-search.txt`).
+//! Leonetti, Kormushev and Sagratella, "Combining local and global direct derivative-free
+//! optimization for reinforcement learning" (Cybernetics and Information Technologies,
+//! 2012), section 4.2.1.
 //!
 //! The algorithm, as the paper gives it (minimisation, directions d_1..d_2n = ±e_i, one
 //! tentative step α̃_j per direction):

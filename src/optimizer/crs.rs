@@ -1,6 +1,7 @@
 //! Controlled Random Search with a weighted centroid and a weighted reflection: the global
 //! phase of Leonetti et al. 2012, section 4.1.1 (Price's CRS as improved by Brachetti et al.),
-//! `shared/papers/leonetti2012-crs-and-coordinate-line-search.txt`.
+//! in "Combining local and global direct derivative-free optimization for reinforcement
+//! learning" (2012).
 //!
 //! * **Step 0** — m ≥ n + 1 points drawn uniformly in the box D and evaluated: the set S.
 //! * **Step 1** — J_max, J_min over S; stop when J_max − J_min ≤ ε.

@@ -1,6 +1,6 @@
 //! Classification-based optimisation: sequential RACOS ([`Sracos`], Hu, Qian & Yu 2017,
 //! "Sequential classification-based optimization for direct policy search", Algorithm 2,
-//! `shared/papers/hu-qian-yu2017-sracos.txt`) and its batch-mode baseline RACOS ([`Racos`],
+//! AAAI 2017) and its batch-mode baseline RACOS ([`Racos`],
 //! Algorithm 1), as the authors' package ZOOpt 0.4.2 implements them (`zoopt/algos/
 //! opt_algorithms/racos/`: `sracos.py`, `racos.py`, `racos_common.py`,
 //! `racos_classification.py`; value suppression in `noise_handling/ssracos.py`).
@@ -41,7 +41,7 @@
 //!   the sample that triggered it is inserted last. The re-evaluations count against the
 //!   budget. Under zero-mean noise one lucky episode then cannot hold a positive slot for
 //!   ever; against rare one-sided flattering outliers it measured worse than no suppression
-//!   (`docs/sracos.md`).
+//!   (`experiments/findings/sracos.md`).
 //!
 //! # Documented deviations
 //! * **Distinct-candidate fallback.** After 100 duplicate draws from the box ZOOpt starts a

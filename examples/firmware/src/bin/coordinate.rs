@@ -12,7 +12,7 @@ use ctrl_adapt_firmware::{exit_failure, exit_success, functions, stack};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
-/// The number of parameters of the AUV policy of issue 6 (and of the paper's experiment).
+/// The number of parameters of the AUV survey policy (and of the paper's experiment).
 const N: usize = 18;
 /// Episode budget: far above what the search needs (about 5,000 evaluations).
 const BUDGET: u32 = 100_000;
