@@ -165,7 +165,7 @@ struct Episode<const P: usize> {
 /// let mut runner = EpisodeRunner::try_new(controller, QuadraticCost::try_new(Vector::<1>::repeat(1.0))?, config)?;
 /// runner.begin_episode(Vector::from([0.5, 0.0]), Mode::Deploy)?;
 /// let u = runner.control(&Vector::from([1.0, 0.0]), &Vector::repeat(1.0));
-/// assert_eq!(u, Vector::repeat(2.5)); // PD 2·1 plus the correction 0.5·1
+/// assert_eq!(u, Vector::<1>::repeat(2.5)); // PD 2·1 plus the correction 0.5·1
 /// let report = runner.end_episode()?;
 /// assert_eq!((report.ticks, report.told, report.failed), (1, None, false));
 /// # Ok::<(), Box<dyn core::error::Error>>(())
