@@ -28,7 +28,7 @@ pub fn episode_on(
     )
 }
 
-/// The cost a learning [`Adapter`] (cost `apex`) tells for one episode of `theta` on the
+/// The cost a learning [`Adapter`](ctrl_adapt::controller::Adapter) (cost `apex`) tells for one episode of `theta` on the
 /// course of `seed` ([`episode_on`]): the episode's cost, or the failure cost if it failed
 /// (collapse, non-finite cost, faulty ticks).
 pub fn told_cost(theta: Vector<P>, seed: u64, apex: ApexConfig) -> Result<f32, AdapterError> {
@@ -130,8 +130,8 @@ pub fn fresh_cmaes(
 
 /// Learns with `cma` for up to `episodes` episodes, episode k (from 0) on a new course (seed
 /// [`FRESH_COURSES`] + k: the blocks the robot meets are never the same twice, as when the
-/// paper's blocks were slid in by hand), each told the cost a learning [`Adapter`] with the
-/// [`ApexHeightCost`] `apex` tells ([`told_cost`]; e.g. [`spread_apex_config`]). Calls
+/// paper's blocks were slid in by hand), each told the cost a learning [`Adapter`](ctrl_adapt::controller::Adapter) with the
+/// [`ApexHeightCost`](ctrl_adapt::cost::ApexHeightCost) `apex` tells ([`told_cost`]; e.g. [`spread_apex_config`]). Calls
 /// `on_episode(k + 1, &cma)` after each tell; stops early if the search stops. Returns the
 /// search: deploy its [`Cmaes::mean`], not its best told θ (a lucky draw on an easy course).
 ///

@@ -193,7 +193,7 @@ pub fn apex_config() -> ApexConfig {
 pub const SPREAD_WEIGHT: f32 = 10.0;
 
 /// [`apex_config`] aimed at the apex variation, for learning on a new course every episode
-/// ([`learn_on_fresh_courses`]): the first [`TRANSIENT_HOPS`] apexes (the drop from rest)
+/// (`experiments::hopping::learn_on_fresh_courses`): the first [`TRANSIENT_HOPS`] apexes (the drop from rest)
 /// left out of the apex terms, plus [`SPREAD_WEIGHT`] · (max − min apex)²; the other
 /// weights as in [`apex_config`]. (0.05 per missing hop instead of 0.01, tried against
 /// policies dropping hops below the 0.45 m threshold, did worse; experiments/findings/hopping.md.)
