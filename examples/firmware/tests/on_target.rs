@@ -11,6 +11,7 @@
 
 use ctrl_adapt_firmware as _; // defmt logger, panic and HardFault handlers that exit QEMU
 
+use auv_survey as auv;
 use ctrl_adapt::controller::{Controller, Mode};
 use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{
@@ -18,7 +19,6 @@ use ctrl_adapt::{
     Replacement, Sracos, SracosConfig, Status, Suppression, Vector, Weighting,
 };
 use ctrl_adapt_firmware::functions::{ellipsoid, ellipsoid_minimiser};
-use auv_survey as auv;
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 

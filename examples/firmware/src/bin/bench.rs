@@ -13,10 +13,10 @@
 
 use core::mem::size_of;
 
+use auv_survey::{self as auv, AuvAdapter, AuvCem, AuvCrs};
 use ctrl_adapt::{Cmaes, CmaesConfig, CoordinateSearch, Error, Optimizer, Sracos, Status};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, functions, stack};
-use auv_survey::{self as auv, AuvAdapter, AuvCem, AuvCrs};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 

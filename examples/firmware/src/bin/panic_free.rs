@@ -23,18 +23,18 @@
 
 use core::hint::black_box;
 
+use auv_survey::{self as auv, AuvLearner};
 use ctrl_adapt::controller::{
     Controller as _, CorrectedPd, Derivative, LinearPolicy, Mode, Pd, StateFeatures,
 };
-use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::cost::{Shaper, SurveyCost};
+use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
     Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
     DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Sracos, SracosConfig, Status,
     Suppression, TwoPhase, Vector, Weighting,
 };
 use ctrl_adapt_firmware::{exit_failure, exit_success};
-use auv_survey::{self as auv, AuvLearner};
 use pil_link::{
     Controller, Frame, FrameReader, Kind, LinkError, MAX_WIRE, Session, read_frame, write_frame,
 };

@@ -6,10 +6,10 @@
 #![no_std]
 #![no_main]
 
+use auv_survey::{self as auv, AuvLearner};
 use ctrl_adapt::CoordinateSearch;
 use ctrl_adapt_firmware::{exit_failure, pil};
 use pil_link::Session;
-use auv_survey::{self as auv, AuvLearner};
 
 #[cortex_m_rt::entry]
 fn main() -> ! {

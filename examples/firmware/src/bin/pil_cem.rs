@@ -4,9 +4,9 @@
 #![no_std]
 #![no_main]
 
+use auv_survey::{self as auv, AuvCem, AuvLearner};
 use ctrl_adapt_firmware::{exit_failure, pil};
 use pil_link::Session;
-use auv_survey::{self as auv, AuvCem, AuvLearner};
 
 #[cortex_m_rt::entry]
 fn main() -> ! {

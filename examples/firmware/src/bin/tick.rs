@@ -7,12 +7,12 @@
 #![no_std]
 #![no_main]
 
+use auv_survey::{self as auv, AuvAdapter};
 use ctrl_adapt::controller::{Adapter, Mode};
 use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{CoordinateSearch, Error, Vector};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, stack};
-use auv_survey::{self as auv, AuvAdapter};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
