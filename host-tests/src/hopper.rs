@@ -920,8 +920,9 @@ impl NominalHopping {
     };
 
     /// The parameters tuned for [`HopperConfig::SCARLETH_SEA`] on flat ground by the procedure
-    /// of `tests/hopper_tuning.rs` (motor-limit steps counted as violations too), rounded to
-    /// two decimals: `cargo run --release -p host-tests --example hopper_sea -- --tune`.
+    /// of `experiments/tests/hopper_tuning.rs` (motor-limit steps counted as violations too),
+    /// rounded to two decimals: `cargo run --release -p experiments --example hopper_sea --
+    /// --tune`.
     pub const SEA_TUNED: Self = Self {
         period: 0.67,
         knee_mean: -0.92,

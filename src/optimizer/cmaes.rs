@@ -105,8 +105,7 @@
 //! About 4·(2N² + (L + 12)·N + 3L) bytes: C and B (N × N each), room for the L draws of a
 //! generation (μ of them used without `active`), the paths, mean, scales, box and weights:
 //! `size_of` is 11 088 B for `Cmaes<31, 14>` and 4 352 B for `Cmaes<18, 10>` (`cargo bench
-//! -p host-tests --bench cmaes`; 64 and 40 B more than before the active weights). N ≤ 127:
-//! nalgebra's
+//! -p experiments --bench cmaes`; the active weights add 64 and 40 B). N ≤ 127: nalgebra's
 //! decomposition needs `Const<N>: DimSub<U1>`, which it implements up to 127 (the
 //! [`SymmetricEigenSize`] bound on the impls, met by every such N without naming it).
 
