@@ -83,3 +83,15 @@ const _: () = {
     assert_format::<Sracos<3>>();
     assert_format::<Racos<3, 1, 3>>();
 };
+
+/// The guide's Rust snippets, compiled and run as doc tests so the guide cannot drift from
+/// the API.
+#[cfg(doctest)]
+mod guide {
+    #[doc = include_str!("../docs/getting-started.md")]
+    struct GettingStarted;
+    #[doc = include_str!("../docs/choosing-an-optimizer.md")]
+    struct ChoosingAnOptimizer;
+    #[doc = include_str!("../docs/plants.md")]
+    struct Plants;
+}
