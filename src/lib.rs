@@ -12,7 +12,8 @@ pub mod reward;
 pub use optimizer::{
     Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
     CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos, RacosConfig, Replacement,
-    Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
+    Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector,
+    Weighting,
 };
 
 /// Compile-time proof that the public types implement `defmt::Format` when the `defmt`
@@ -58,4 +59,6 @@ const _: () = {
     assert_format::<RacosConfig>();
     assert_format::<Sracos<3>>();
     assert_format::<Racos<3, 1, 3>>();
+    assert_format::<RockstarConfig>();
+    assert_format::<Rockstar<3, 8>>();
 };
