@@ -33,8 +33,8 @@ pub use bounds::Bounds;
 pub use error::Error;
 pub use optimizer::{
     AnyOptimizer, Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Sracos,
-    SracosConfig, Status, Suppression, TwoPhase, Weighting,
+    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Rockstar,
+    RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Weighting,
 };
 pub use vector::Vector;
 
@@ -82,6 +82,8 @@ const _: () = {
     assert_format::<RacosConfig>();
     assert_format::<Sracos<3>>();
     assert_format::<Racos<3, 1, 3>>();
+    assert_format::<RockstarConfig>();
+    assert_format::<Rockstar<3, 8>>();
 };
 
 /// The guide's Rust snippets, compiled and run as doc tests so the guide cannot drift from

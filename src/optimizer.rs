@@ -40,6 +40,7 @@ pub mod cem;
 pub mod cmaes;
 pub mod coordinate;
 pub mod crs;
+pub mod rockstar;
 pub mod sracos;
 pub mod two_phase;
 
@@ -50,6 +51,7 @@ pub use cem::{CemConfig, DiagonalCem, Weighting};
 pub use cmaes::{Cmaes, CmaesConfig};
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
 pub use crs::{ControlledRandomSearch, CrsConfig};
+pub use rockstar::{Rockstar, RockstarConfig};
 pub use sracos::{Racos, RacosConfig, Replacement, Sracos, SracosConfig, Suppression};
 pub use two_phase::TwoPhase;
 

@@ -76,3 +76,13 @@ pub(crate) fn any_bounds<const N: usize>(min_width: f32) -> impl Strategy<Value 
         Bounds::try_new(lower, upper).unwrap()
     })
 }
+
+/// Boxes with corners in ±10³ and widths log-uniform from 10⁻² to 10³⁰, for property tests
+/// of optimizers that normalise the box.
+pub(crate) fn any_wide_bounds<const N: usize>() -> impl Strategy<Value = Bounds<N>> {
+    prop::array::uniform::<_, N>((-1e3f32..1e3, -2.0f32..30.0)).prop_map(|pairs| {
+        let lower = Vector::from(pairs.map(|(lo, _)| lo));
+        let upper = Vector::from(pairs.map(|(lo, e)| lo + libm::powf(10.0, e)));
+        Bounds::try_new(lower, upper).unwrap()
+    })
+}

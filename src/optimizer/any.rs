@@ -9,8 +9,8 @@
 //! switch algorithms from a configuration value.
 
 use super::{
-    Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Optimizer, Sracos, TwoPhase,
-    cmaes::SymmetricEigenSize,
+    Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Optimizer, Rockstar, Sracos,
+    TwoPhase, cmaes::SymmetricEigenSize,
 };
 use nalgebra::Const;
 
@@ -93,7 +93,7 @@ macro_rules! forward_optimizer {
 /// `N` parameters; `L` is the population of the diagonal CEM and of CMA-ES (the tutorial's
 /// default for n = 18 is 12, [`default_population`](super::cmaes::default_population)), `E`
 /// the CEM's elites, `M` the controlled random search's points (also the global phase of
-/// [`TwoPhase`]). Each variant is built with its own `try_new`; `From` wraps it.
+/// [`TwoPhase`]) and the rollouts [`Rockstar`] remembers (5n is its recommended memory). Each variant is built with its own `try_new`; `From` wraps it.
 ///
 /// ```
 /// use ctrl_adapt::optimizer::{AnyOptimizer, CoordinateConfig, CoordinateSearch, Optimizer};
@@ -125,6 +125,8 @@ pub enum AnyOptimizer<const N: usize, const L: usize = 12, const E: usize = 6, c
     Cem(DiagonalCem<N, L, E>),
     /// [`Cmaes`] with population `L`.
     Cmaes(Cmaes<N, L>),
+    /// [`Rockstar`] remembering `M` rollouts.
+    Rockstar(Rockstar<N, M>),
 }
 
 impl<const N: usize, const L: usize, const E: usize, const M: usize> Optimizer<N>
@@ -132,7 +134,7 @@ impl<const N: usize, const L: usize, const E: usize, const M: usize> Optimizer<N
 where
     Const<N>: SymmetricEigenSize<N>,
 {
-    crate::forward_optimizer!(Coordinate, Crs, TwoPhase, Sracos, Cem, Cmaes);
+    crate::forward_optimizer!(Coordinate, Crs, TwoPhase, Sracos, Cem, Cmaes, Rockstar);
 }
 
 macro_rules! from_variant {
@@ -156,12 +158,15 @@ from_variant!(
     Sracos(Sracos<N>),
     Cem(DiagonalCem<N, L, E>),
     Cmaes(Cmaes<N, L>),
+    Rockstar(Rockstar<N, M>),
 );
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optimizer::{CemConfig, CmaesConfig, CoordinateConfig, SracosConfig, Status};
+    use crate::optimizer::{
+        CemConfig, CmaesConfig, CoordinateConfig, RockstarConfig, SracosConfig, Status,
+    };
     use crate::{Bounds, Error, Vector};
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;
@@ -173,7 +178,7 @@ mod tests {
     fn forwards_every_method_to_the_variant() {
         let bounds = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
         let start = Vector::repeat(0.5);
-        let variants: [AnyOptimizer<3, 7, 3, 10>; 4] = [
+        let variants: [AnyOptimizer<3, 7, 3, 10>; 5] = [
             CoordinateSearch::try_new(bounds, start, CoordinateConfig::DEFAULT)
                 .unwrap()
                 .into(),
@@ -184,6 +189,9 @@ mod tests {
                 .unwrap()
                 .into(),
             Cmaes::try_new(bounds, start, CmaesConfig::DEFAULT)
+                .unwrap()
+                .into(),
+            Rockstar::try_new(bounds, start, RockstarConfig::DEFAULT)
                 .unwrap()
                 .into(),
         ];
@@ -200,6 +208,7 @@ mod tests {
                     AnyOptimizer::Sracos(o) => o.ask(&mut rng_b),
                     AnyOptimizer::Cem(o) => o.ask(&mut rng_b),
                     AnyOptimizer::Cmaes(o) => o.ask(&mut rng_b),
+                    AnyOptimizer::Rockstar(o) => o.ask(&mut rng_b),
                     _ => unreachable!(),
                 }
                 .unwrap();

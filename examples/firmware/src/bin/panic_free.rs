@@ -4,7 +4,8 @@
 //! * every optimizer's `ask`/`tell` and accessors at N = 18: `CoordinateSearch` (both
 //!   constructors), `Sracos` (every replacement strategy, with and without value
 //!   suppression), `Racos`, `DiagonalCem` (every weighting, fixed and adapted covariance),
-//!   `ControlledRandomSearch`, `TwoPhase`; and `Bounds`, `unit_f32`, `normal_pair_f32`;
+//!   `ControlledRandomSearch`, `TwoPhase`, `Rockstar` (memory 90 = 5n); and `Bounds`,
+//!   `unit_f32`, `normal_pair_f32`;
 //! * the controller layer: `Pd` (output, update, limits), `LinearPolicy`, `CorrectedPd`, and
 //!   the AUV `Adapter`'s whole API (`begin_episode`, `control` on finite and non-finite
 //!   states, `end_episode`, `abort_episode`, `set_mode` in every mode, the accessors), with
@@ -31,8 +32,8 @@ use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
     Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
-    DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Sracos, SracosConfig, Status,
-    Suppression, TwoPhase, Vector, Weighting,
+    DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Rockstar, RockstarConfig, Sracos,
+    SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
 };
 use ctrl_adapt_firmware::{exit_failure, exit_success};
 use pil_link::{
@@ -235,7 +236,33 @@ fn other_optimizers(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
         told += drive(&mut t, rng, u32::MAX);
         black_box((t.phase(), t.global().best(), t.local().map(|l| l.best())));
     }
+    told += rockstar(rng, bounds);
     black_box(normal_pair_f32(rng));
+    told
+}
+
+/// ROCK* with a configuration the compiler cannot see, and its accessors.
+fn rockstar(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
+    let config = RockstarConfig {
+        initial_sigma: black_box(0.2),
+        lambda: black_box(0.5),
+        initial_samples: black_box(3),
+        step_gain: black_box(0.5),
+        descent_iterations: black_box(40),
+        tolerance: black_box(1e-6),
+        max_evaluations: black_box(300),
+        ..RockstarConfig::DEFAULT
+    };
+    let Ok(mut r) = Rockstar::<N, 90>::try_new(bounds, bounds.sample_uniform(rng), config) else {
+        exit_failure()
+    };
+    let told = drive(&mut r, rng, u32::MAX);
+    black_box((r.theta_star(), r.normalised_theta_star(), r.estimated_cost()));
+    black_box((r.sigma(), r.shape(), r.kernel_factor(), r.remembered()));
+    black_box((r.updates(), r.covariance_updates(), r.recoveries(), r.config()));
+    for (theta, cost) in r.memory() {
+        black_box((theta, cost));
+    }
     told
 }
 
