@@ -126,6 +126,14 @@
 //! runs reached a best cost below 10⁻⁶ within 2 800 rollouts and stopped with θ*'s cost
 //! below 10⁻⁶; the fourth stopped (σ ≤ 10⁻⁶) with θ*'s cost at 3·10⁻⁵ and never reached
 //! 10⁻⁶: σ had shrunk before the shape was learned. Condition 10³ is in the unit tests.
+//! The σ rule is the reason: two consecutive samples drawn around a θ* that does not move
+//! are exchangeable, so σ shrinks by ζ^(1.3/2 − 1/2) per rollout on average whenever the
+//! regression stops making progress. On the axis-aligned 4-D ellipsoid Σ 10^(w·i/3)(θ_i −
+//! c_i)² in [−1, 1]⁴ from 0 (memory 20, tolerance 10⁻³, seeds 0–39) θ* ended within 0.05 of
+//! the minimiser in every run for condition 1 and 10, in 39 of 40 for 10², and in 26 of 40
+//! for 10³, where [`Cmaes`](super::Cmaes) (population 8, the same box, tolerance and seeds)
+//! ended within 0.05 in all 40. For an ill-conditioned cost, restart from θ* with σ₀ again,
+//! or use `Cmaes`.
 //!
 //! # Memory
 //! The last `M` rollouts are remembered; when the memory is full the **oldest** is

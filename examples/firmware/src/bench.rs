@@ -73,5 +73,55 @@ pub mod sections {
         cmaes_ask = 11;
         /// `Cmaes::<18, 12>::tell`.
         cmaes_tell = 12;
+        /// `Rockstar::<18, 90>::ask`.
+        rockstar_ask = 13;
+        /// `Rockstar::<18, 90>::tell`.
+        rockstar_tell = 14;
+        /// `Rockstar::<31, 155>::ask` (the hopping leg's 31 parameters).
+        rockstar_hopper_ask = 15;
+        /// `Rockstar::<31, 155>::tell`.
+        rockstar_hopper_tell = 16;
     }
+}
+
+/// Logs `footprint: size_of NAME = N` for the type `$t`.
+#[macro_export]
+macro_rules! log_size {
+    ($name:literal, $t:ty) => {
+        defmt::info!(
+            "footprint: size_of {=str} = {=usize}",
+            $name,
+            core::mem::size_of::<$t>()
+        )
+    };
+}
+
+/// Runs up to `$measured` ask/tell pairs of `$optimizer` (a `Result<O, Error>` expression)
+/// on the `$n`-D ill-conditioned ellipsoid, each call between the markers of sections
+/// `$ask` and `$tell`, and logs how many pairs were measured. Evaluates to
+/// `Result<(), Error>`; use it in a never-inlined function per optimizer, so that each one's
+/// state lives in its own stack frame.
+#[macro_export]
+macro_rules! measure_optimizer {
+    ($optimizer:expr, $n:expr, $measured:expr, $ask:ident, $tell:ident) => {{
+        use ctrl_adapt::{Optimizer as _, Status};
+        use rand_core::SeedableRng as _;
+        let mut optimizer = $optimizer?;
+        let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
+        let ellipsoid = $crate::functions::Ellipsoid::<{ $n }>::new();
+        for _ in 0..$measured {
+            if optimizer.status() != Status::Running {
+                break;
+            }
+            let theta = $crate::bench::sections::$ask::measure(|| optimizer.ask(&mut rng))?;
+            let cost = ellipsoid.eval(&theta);
+            $crate::bench::sections::$tell::measure(|| optimizer.tell(cost))?;
+        }
+        defmt::info!(
+            "footprint: measured {=str} + tell pairs = {=u32}",
+            stringify!($ask),
+            optimizer.evaluations()
+        );
+        Ok::<(), ctrl_adapt::Error>(())
+    }};
 }

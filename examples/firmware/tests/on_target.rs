@@ -3,7 +3,7 @@
 //!
 //! These mirror the host unit and property tests of `src/optimizer.rs`,
 //! `src/optimizer/coordinate.rs`, the controller layer (the policy's envelope, the adapter's
-//! fallbacks) and SRACOS / the diagonal CEM (the proptest properties become loops over seeded
+//! fallbacks) and SRACOS / the diagonal CEM / ROCK* (the proptest properties become loops over seeded
 //! random cases, as proptest needs std), so target-specific numerics are covered: f32
 //! rounding at the box faces, NaN handling, libm's `powf`, `logf`, `cosf` and `sqrtf`.
 #![no_std]
@@ -16,7 +16,8 @@ use ctrl_adapt::controller::{Controller, Mode};
 use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{
     Bounds, CemConfig, CoordinateConfig, CoordinateSearch, DiagonalCem, Error, Optimizer,
-    Replacement, Sracos, SracosConfig, Status, Suppression, Vector, Weighting,
+    Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, Vector,
+    Weighting,
 };
 use ctrl_adapt_firmware::functions::{ellipsoid, ellipsoid_minimiser};
 use rand_core::{RngCore, SeedableRng};
@@ -461,7 +462,7 @@ mod tests {
     /// PD on the last valid state; zero without one, or when it is not finite.
     #[test]
     fn pil_fallback_is_the_nominal_pd() {
-        use pil_link::Controller as _;
+        use pil_link::Learner as _;
         let mut l =
             auv::AuvLearner::try_new(auv::coordinate_search(u32::MAX).unwrap(), u32::MAX, 1)
                 .unwrap();
@@ -544,5 +545,79 @@ mod tests {
                 150,
             );
         }
+    }
+
+    /// ROCK* over seeded random boxes (widths 1e-3..1e30: it works in the box's unit
+    /// coordinates), σ₀ and λ, with NaN/inf/extreme costs: every candidate and θ* inside the
+    /// box, a non-finite cost rejected with the state unchanged, the best never increasing;
+    /// and on a 4-D sphere it converges (σ ≤ tolerance) with θ* near the minimum. (Not the
+    /// ill-conditioned ellipsoid: ROCK*'s σ rule shrinks σ when θ* stalls, and at condition
+    /// 10³ about one run in three stops early; see the module docs.)
+    #[test]
+    fn rockstar_candidates_stay_in_bounds_and_it_converges() {
+        let mut r = rng(31);
+        for k in 0..12u32 {
+            let lower = Vector::<4>::from_fn(|_, _| uniform(&mut r, -1e3, 1e3));
+            let upper = Vector::<4>::from_fn(|i, _| {
+                lower[i] + libm::powf(10.0, uniform(&mut r, -3.0, 30.0))
+            });
+            let bounds = Bounds::try_new(lower, upper).unwrap();
+            let config = RockstarConfig {
+                initial_sigma: libm::powf(10.0, uniform(&mut r, -4.0, 0.0)),
+                lambda: uniform(&mut r, 0.1, 0.9),
+                ..RockstarConfig::DEFAULT
+            };
+            let start = bounds.sample_uniform(&mut r);
+            let rock = Rockstar::<4, 20>::try_new(bounds, start, config).unwrap();
+            candidates_in_bounds::<4, _>(rock.clone(), &mut r, 120);
+            let mut rock = rock;
+            for _ in 0..60 {
+                let Ok(_) = rock.ask(&mut r) else { break };
+                rock.tell(wild_cost(&mut r)).ok();
+                rock.tell(uniform(&mut r, 0.0, 10.0)).ok();
+                assert!(bounds.contains(&rock.theta_star()), "box {}", k);
+            }
+        }
+        let bounds = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
+        let config = RockstarConfig {
+            tolerance: 1e-3,
+            max_evaluations: 3_000,
+            ..RockstarConfig::DEFAULT
+        };
+        let mut rock = Rockstar::<4, 20>::try_new(bounds, Vector::zeros(), config).unwrap();
+        let sphere = |theta: &Vector<4>| {
+            (0..4)
+                .map(|i| libm::powf(theta[i] - ellipsoid_minimiser::<4>(i), 2.0))
+                .sum::<f32>()
+        };
+        while let Ok(theta) = rock.ask(&mut r) {
+            rock.tell(sphere(&theta)).unwrap();
+        }
+        assert_eq!(rock.status(), Status::Converged);
+        let star = rock.theta_star();
+        for i in 0..4 {
+            assert!(
+                (star[i] - ellipsoid_minimiser::<4>(i)).abs() < 0.05,
+                "θ*[{}] = {}",
+                i,
+                star[i]
+            );
+        }
+    }
+
+    /// `Rockstar<18, 90>` (the recommended memory, 5n) over the AUV box with wild costs: the
+    /// same invariants at the size a firmware would deploy. Cortex-M4F only: the micro:bit's
+    /// 16 KiB RAM cannot hold the two 10.6 KB copies the check compares.
+    #[cfg(target_abi = "eabihf")]
+    #[test]
+    fn rockstar_at_the_auv_size_stays_in_bounds() {
+        let mut r = rng(32);
+        let rock = Rockstar::<18, 90>::try_new(
+            auv::bounds().unwrap(),
+            Vector::zeros(),
+            RockstarConfig::DEFAULT,
+        )
+        .unwrap();
+        candidates_in_bounds::<18, _>(rock, &mut r, 300);
     }
 }

@@ -11,14 +11,10 @@
 #![no_std]
 #![no_main]
 
-use core::mem::size_of;
-
 use auv_survey::{self as auv, AuvAdapter, AuvCem, AuvCrs};
-use ctrl_adapt::{Cmaes, CmaesConfig, CoordinateSearch, Error, Optimizer, Sracos, Status};
+use ctrl_adapt::{Cmaes, CmaesConfig, CoordinateSearch, Error, Sracos};
 use ctrl_adapt_firmware::bench::sections;
-use ctrl_adapt_firmware::{exit_failure, exit_success, functions, stack};
-use rand_core::SeedableRng;
-use rand_xoshiro::Xoshiro128PlusPlus;
+use ctrl_adapt_firmware::{exit_failure, exit_success, log_size, measure_optimizer, stack};
 
 const N: usize = auv::P;
 /// The CMA-ES measured: the tutorial's default population 4 + ⌊3 ln 18⌋ = 12.
@@ -28,41 +24,6 @@ type AuvCmaes = Cmaes<N, 12>;
 /// SRACOS's 12 initial samples and the model updates; 40 CEM updates; CRS's 100 initial
 /// points and 300 trial points).
 const MEASURED: u32 = 400;
-
-/// Logs `footprint: size_of NAME = N`.
-macro_rules! log_size {
-    ($name:literal, $t:ty) => {
-        defmt::info!(
-            "footprint: size_of {=str} = {=usize}",
-            $name,
-            size_of::<$t>()
-        )
-    };
-}
-
-/// Runs `MEASURED` ask/tell pairs of `$optimizer` on the ellipsoid, each call between the
-/// markers of sections `$ask` and `$tell`.
-macro_rules! measure_optimizer {
-    ($optimizer:expr, $ask:ident, $tell:ident) => {{
-        let mut optimizer = $optimizer?;
-        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-        let ellipsoid = functions::Ellipsoid::<N>::new();
-        for _ in 0..MEASURED {
-            if optimizer.status() != Status::Running {
-                break;
-            }
-            let theta = sections::$ask::measure(|| optimizer.ask(&mut rng))?;
-            let cost = ellipsoid.eval(&theta);
-            sections::$tell::measure(|| optimizer.tell(cost))?;
-        }
-        defmt::info!(
-            "footprint: measured {=str} + tell pairs = {=u32}",
-            stringify!($ask),
-            optimizer.evaluations()
-        );
-        Ok::<(), Error>(())
-    }};
-}
 
 #[cortex_m_rt::entry]
 fn main() -> ! {
@@ -105,6 +66,8 @@ fn main() -> ! {
 fn coordinate_search() -> Result<(), Error> {
     measure_optimizer!(
         auv::coordinate_search(u32::MAX),
+        N,
+        MEASURED,
         coordinate_ask,
         coordinate_tell
     )
@@ -112,17 +75,17 @@ fn coordinate_search() -> Result<(), Error> {
 
 #[inline(never)]
 fn sracos() -> Result<(), Error> {
-    measure_optimizer!(auv::sracos(u32::MAX), sracos_ask, sracos_tell)
+    measure_optimizer!(auv::sracos(u32::MAX), N, MEASURED, sracos_ask, sracos_tell)
 }
 
 #[inline(never)]
 fn cem() -> Result<(), Error> {
-    measure_optimizer!(auv::cem(u32::MAX), cem_ask, cem_tell)
+    measure_optimizer!(auv::cem(u32::MAX), N, MEASURED, cem_ask, cem_tell)
 }
 
 #[inline(never)]
 fn crs() -> Result<(), Error> {
-    measure_optimizer!(auv::crs(u32::MAX), crs_ask, crs_tell)
+    measure_optimizer!(auv::crs(u32::MAX), N, MEASURED, crs_ask, crs_tell)
 }
 
 #[inline(never)]
@@ -136,6 +99,8 @@ fn cmaes() -> Result<(), Error> {
     };
     measure_optimizer!(
         AuvCmaes::try_new(auv::bounds()?, ctrl_adapt::Vector::zeros(), config),
+        N,
+        MEASURED,
         cmaes_ask,
         cmaes_tell
     )

@@ -37,7 +37,7 @@ use ctrl_adapt::{
 };
 use ctrl_adapt_firmware::{exit_failure, exit_success};
 use pil_link::{
-    Controller, Frame, FrameReader, Kind, LinkError, MAX_WIRE, Session, read_frame, write_frame,
+    Frame, FrameReader, Kind, Learner, LinkError, MAX_WIRE, Session, read_frame, write_frame,
 };
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -257,9 +257,18 @@ fn rockstar(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
         exit_failure()
     };
     let told = drive(&mut r, rng, u32::MAX);
-    black_box((r.theta_star(), r.normalised_theta_star(), r.estimated_cost()));
+    black_box((
+        r.theta_star(),
+        r.normalised_theta_star(),
+        r.estimated_cost(),
+    ));
     black_box((r.sigma(), r.shape(), r.kernel_factor(), r.remembered()));
-    black_box((r.updates(), r.covariance_updates(), r.recoveries(), r.config()));
+    black_box((
+        r.updates(),
+        r.covariance_updates(),
+        r.recoveries(),
+        r.config(),
+    ));
     for (theta, cost) in r.memory() {
         black_box((theta, cost));
     }
@@ -379,7 +388,7 @@ fn pil_session(rng: &mut Rng) -> bool {
 }
 
 #[inline(never)]
-fn session<C: Controller>(rng: &mut Rng, controller: C) -> bool {
+fn session<C: Learner>(rng: &mut Rng, controller: C) -> bool {
     let mut session = Session::new(controller);
     let mut reader = FrameReader::new();
     let mut answers = 0u32;

@@ -8,9 +8,9 @@
 #![no_main]
 
 use auv_survey::{self as auv, AuvAdapter};
-use ctrl_adapt::controller::{Adapter, Mode};
+use ctrl_adapt::controller::{Adapter, AdapterError, Mode};
 use ctrl_adapt::optimizer::unit_f32;
-use ctrl_adapt::{CoordinateSearch, Error, Vector};
+use ctrl_adapt::{CoordinateSearch, Vector};
 use ctrl_adapt_firmware::bench::sections;
 use ctrl_adapt_firmware::{exit_failure, exit_success, stack};
 use rand_core::SeedableRng;
@@ -38,7 +38,7 @@ fn main() -> ! {
 /// corrected law); the states are uniform over errors of ±6 m and velocities of ±0.6 m/s,
 /// so the PD and the correction saturate on some axes of some ticks and not on others.
 #[inline(never)]
-fn measure_controller() -> Result<(), Error> {
+fn measure_controller() -> Result<(), AdapterError> {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(2);
     let bounds = auv::bounds()?;
     let theta = bounds.sample_uniform(&mut rng);
