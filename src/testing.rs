@@ -49,6 +49,35 @@ pub(crate) fn check_call_order<const N: usize, O: Optimizer<N>>(s: &mut O) -> Ve
     first
 }
 
+/// Checks, over `evaluations` asks and tells of the sphere ‖θ‖²: `tell` without a pending
+/// candidate, and NaN or infinite costs, are errors that leave the whole state unchanged
+/// (the candidate stays pending and is told afterwards); a repeated `ask` returns the
+/// pending candidate.
+pub(crate) fn check_rejected_calls_change_nothing<const N: usize, O>(s: &mut O, evaluations: u32)
+where
+    O: Optimizer<N> + Clone + PartialEq + core::fmt::Debug,
+{
+    let mut r = rng(7);
+    for _ in 0..evaluations {
+        let before = s.clone();
+        assert_eq!(s.tell(1.0), Err(Error::NoPendingAsk));
+        assert_eq!(*s, before);
+        let t = s.ask(&mut r).unwrap();
+        assert_eq!(
+            s.ask(&mut r).unwrap(),
+            t,
+            "a second ask repeats the pending one"
+        );
+        assert_eq!(s.pending(), Some(&t));
+        let pending = s.clone();
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            assert_eq!(s.tell(bad), Err(Error::NonFinite("cost")));
+            assert_eq!(*s, pending);
+        }
+        s.tell(t.norm_squared()).unwrap();
+    }
+}
+
 /// The (candidate, cost) sequence of `s` from `seed` until it stops, with the cost
 /// `objective(θ)` plus noise `noise`·U[0, 1) drawn from the same RNG (so a run depends on the
 /// seed through both).

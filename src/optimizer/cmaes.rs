@@ -697,7 +697,7 @@ where
 mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
-    use crate::testing::{any_bounds, rng, trace};
+    use crate::testing::{any_bounds, check_rejected_calls_change_nothing, rng, trace};
     use proptest::prelude::*;
 
     fn config(initial_sigma: f32, max_evaluations: u32) -> CmaesConfig {
@@ -1046,25 +1046,7 @@ mod tests {
     fn rejected_calls_change_nothing() {
         let bounds = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
         let mut cma = Cmaes::<3, 4>::try_new(bounds, Vector::zeros(), config(0.5, 100)).unwrap();
-        let mut r = rng(7);
-        for _ in 0..8 {
-            let before = cma.clone();
-            assert_eq!(cma.tell(1.0), Err(Error::NoPendingAsk));
-            assert_eq!(cma, before);
-            let t = cma.ask(&mut r).unwrap();
-            assert_eq!(
-                cma.ask(&mut r).unwrap(),
-                t,
-                "a second ask repeats the pending one"
-            );
-            assert_eq!(cma.pending(), Some(&t));
-            let pending = cma.clone();
-            for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-                assert_eq!(cma.tell(bad), Err(Error::NonFinite("cost")));
-                assert_eq!(cma, pending);
-            }
-            cma.tell(t.norm_squared()).unwrap();
-        }
+        check_rejected_calls_change_nothing(&mut cma, 8);
         assert_eq!((cma.evaluations(), cma.generations()), (8, 2));
     }
 

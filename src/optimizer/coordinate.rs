@@ -403,33 +403,26 @@ impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
                     self.ledger.stop(Status::Converged);
                 }
             }
-            Phase::Probe { step } => {
-                if self.sufficient(step, cost) {
-                    self.current = theta;
-                    self.current_cost = cost;
-                    self.phase = Phase::Expand {
-                        accepted: step,
-                        step,
-                    };
-                } else {
-                    self.contract(j);
-                    self.phase = Phase::Probe { step: 0.0 };
-                    self.next_direction();
-                }
+            // A sufficient decrease is accepted, and the line search expands along it.
+            Phase::Probe { step } | Phase::Expand { step, .. } if self.sufficient(step, cost) => {
+                self.current = theta;
+                self.current_cost = cost;
+                self.phase = Phase::Expand {
+                    accepted: step,
+                    step,
+                };
             }
-            Phase::Expand { accepted, step } => {
-                if self.sufficient(step, cost) {
-                    self.current = theta;
-                    self.current_cost = cost;
-                    self.phase = Phase::Expand {
-                        accepted: step,
-                        step,
-                    };
-                } else {
-                    self.succeed(j, accepted);
-                    self.phase = Phase::Probe { step: 0.0 };
-                    self.next_direction();
-                }
+            // A failed probe contracts the direction's step.
+            Phase::Probe { .. } => {
+                self.contract(j);
+                self.phase = Phase::Probe { step: 0.0 };
+                self.next_direction();
+            }
+            // A failed expansion keeps the last accepted step and the direction succeeds.
+            Phase::Expand { accepted, .. } => {
+                self.succeed(j, accepted);
+                self.phase = Phase::Probe { step: 0.0 };
+                self.next_direction();
             }
             // `accept` succeeded, so a candidate was pending, so the phase was not Done.
             Phase::Done => {}

@@ -85,6 +85,21 @@ impl<const N: usize> Ledger<N> {
         self.status = status;
     }
 
+    /// Hands out `theta`, or, when the search has no candidate left to propose (`None`),
+    /// stops it as converged and answers [`Error::Stopped`].
+    pub(crate) fn hand_out_or_stop(
+        &mut self,
+        theta: Option<Vector<N>>,
+    ) -> Result<Vector<N>, Error> {
+        match theta {
+            Some(theta) => Ok(self.hand_out(theta)),
+            None => {
+                self.stop(Status::Converged);
+                Err(Error::Stopped)
+            }
+        }
+    }
+
     /// Marks `theta` as handed out.
     pub(crate) fn hand_out(&mut self, theta: Vector<N>) -> Vector<N> {
         self.pending = Some(theta);

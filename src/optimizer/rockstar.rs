@@ -1136,7 +1136,9 @@ fn lower_inverse_into<const N: usize>(l: &SMatrix<f32, N, N>, inv: &mut SMatrix<
 mod tests {
     use super::*;
     use crate::optimizer::{Best, Cmaes, CmaesConfig};
-    use crate::testing::{any_wide_bounds, check_call_order, rng, trace};
+    use crate::testing::{
+        any_wide_bounds, check_call_order, check_rejected_calls_change_nothing, rng, trace,
+    };
     use proptest::prelude::*;
     use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -1761,25 +1763,7 @@ mod tests {
     fn rejected_calls_change_nothing() {
         let bounds = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
         let mut rock = Rockstar::<3, 6>::try_new(bounds, Vector::zeros(), config(100)).unwrap();
-        let mut r = rng(7);
-        for _ in 0..10 {
-            let before = rock.clone();
-            assert_eq!(rock.tell(1.0), Err(Error::NoPendingAsk));
-            assert_eq!(rock, before);
-            let t = rock.ask(&mut r).unwrap();
-            assert_eq!(
-                rock.ask(&mut r).unwrap(),
-                t,
-                "a second ask repeats the pending one"
-            );
-            assert_eq!(rock.pending(), Some(&t));
-            let pending = rock.clone();
-            for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-                assert_eq!(rock.tell(bad), Err(Error::NonFinite("cost")));
-                assert_eq!(rock, pending);
-            }
-            rock.tell(t.norm_squared()).unwrap();
-        }
+        check_rejected_calls_change_nothing(&mut rock, 10);
         assert_eq!((rock.evaluations(), rock.updates()), (10, 9));
     }
 

@@ -67,7 +67,7 @@
 use rand_core::RngCore;
 
 use super::ledger_accessors;
-use super::{Best, Bounds, Error, Ledger, Optimizer, Status, Vector, unit_f32};
+use super::{Best, Bounds, Error, Ledger, Optimizer, Vector, unit_f32};
 
 mod classifier;
 
@@ -656,13 +656,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
                 )
             }
         };
-        match theta {
-            Some(theta) => Ok(self.ledger.hand_out(theta)),
-            None => {
-                self.ledger.stop(Status::Converged);
-                Err(Error::Stopped)
-            }
-        }
+        self.ledger.hand_out_or_stop(theta)
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
@@ -773,13 +767,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
                 !archive.contains(x, first) && !batch.iter().any(|e| same(&e.theta, x, first))
             },
         );
-        match theta {
-            Some(theta) => Ok(self.ledger.hand_out(theta)),
-            None => {
-                self.ledger.stop(Status::Converged);
-                Err(Error::Stopped)
-            }
-        }
+        self.ledger.hand_out_or_stop(theta)
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
@@ -809,6 +797,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::optimizer::Status;
     use crate::testing::{any_bounds, rng};
     use proptest::prelude::*;
 
