@@ -30,13 +30,15 @@ pub struct Bounds<const N: usize> {
 }
 
 impl<const N: usize> Bounds<N> {
-    /// The box `[lower, upper]`; every bound must be finite and `lower[i] < upper[i]`
-    /// (a coordinate with no room to move should not be a parameter).
+    /// The box `[lower, upper]`; every bound must be finite, `lower[i] < upper[i]` (a
+    /// coordinate with no room to move should not be a parameter) and the width
+    /// `upper[i] − lower[i]` finite in `f32` (at most `f32::MAX`: the optimizers sample and
+    /// normalise through it).
     pub fn try_new(lower: Vector<N>, upper: Vector<N>) -> Result<Self, Error> {
         const { assert!(N > 0, "an optimizer needs at least one parameter") };
         for i in 0..N {
             let (lo, hi) = (lower[i], upper[i]);
-            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi && (hi - lo).is_finite()) {
                 return Err(Error::InvalidBounds { index: i });
             }
         }
@@ -104,6 +106,30 @@ mod tests {
     use super::*;
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;
+
+    /// Checks: a box whose width `upper − lower` overflows f32 is rejected, naming the
+    /// coordinate (every algorithm measures and samples through the width; such a box made
+    /// `sample_uniform` return the upper corner every time); the widest box still accepted,
+    /// [−f32::MAX/2, f32::MAX/2], samples points spread inside it.
+    #[test]
+    fn bounds_reject_a_width_that_overflows() {
+        assert_eq!(
+            Bounds::<1>::uniform(f32::MIN, f32::MAX),
+            Err(Error::InvalidBounds { index: 0 })
+        );
+        let lower = Vector::<2>::from([0.0, -3e38]);
+        let upper = Vector::<2>::from([1.0, 3e38]);
+        assert_eq!(
+            Bounds::try_new(lower, upper),
+            Err(Error::InvalidBounds { index: 1 })
+        );
+        let wide = Bounds::<1>::uniform(-f32::MAX / 2.0, f32::MAX / 2.0).unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+        let draws: std::vec::Vec<f32> =
+            (0..100).map(|_| wide.sample_uniform(&mut rng)[0]).collect();
+        assert!(draws.iter().all(|&v| wide.contains(&Vector::from([v]))));
+        assert!(draws.iter().any(|&v| v < -1e37) && draws.iter().any(|&v| v > 1e37));
+    }
 
     #[test]
     fn bounds_reject_non_finite_and_empty_intervals() {

@@ -154,7 +154,14 @@ fn auv_demo(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
         .best()
         .ok_or("the global phase told nothing")?
         .theta;
-    let learned = adapter.deployed_theta();
+    // The phases scored in different currents: what the robot learned is the local phase's
+    // own best (TwoPhase::best is the best over both phases, here a simulator cost).
+    let learned = adapter
+        .optimizer()
+        .local()
+        .and_then(|l| l.best())
+        .ok_or("the local phase told nothing")?
+        .theta;
     let phase1_real = auv_task::evaluate(phase1, &mut real, &mut rng, true)?;
     let learned_real = auv_task::evaluate(learned, &mut real, &mut rng, true)?;
 

@@ -153,13 +153,17 @@ impl<G: Optimizer<N>, const N: usize> Optimizer<N> for TwoPhase<G, N> {
         }
     }
 
-    /// The local phase's best once it has one, else the global best: the two phases may
-    /// score in different conditions (simulator and robot), so their costs are not mixed.
+    /// The best (θ, cost) told to either phase: it never gets worse, also not at the
+    /// hand-over, where the local phase re-measures the global best (on a noisy plant, or in
+    /// new conditions, possibly at a higher cost). When the phases score in different
+    /// conditions (a simulator, then the robot) and only the robot's costs should count,
+    /// read the local phase's own best: `two.local().and_then(|l| l.best())`.
     fn best(&self) -> Option<Best<N>> {
-        self.local
-            .as_ref()
-            .and_then(|l| l.best())
-            .or_else(|| self.global.best())
+        let global = self.global.best();
+        match self.local.as_ref().and_then(|l| l.best()) {
+            Some(local) if global.is_none_or(|g| local.cost < g.cost) => Some(local),
+            _ => global,
+        }
     }
 
     fn pending(&self) -> Option<&Vector<N>> {
@@ -189,6 +193,48 @@ mod tests {
     use crate::optimizer::{ControlledRandomSearch, CrsConfig};
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;
+
+    /// Checks: `best` never gets worse at the hand-over. The global phase's best θ is told
+    /// 1.0; the local phase re-measures it first and is told 5.0 (a noisy plant), then worse
+    /// costs: `best` stays the global (θ, 1.0) until the local phase beats it, while
+    /// `local()` reports the local phase's own best.
+    #[test]
+    fn best_never_gets_worse_at_the_hand_over() {
+        let bounds = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
+        let crs = ControlledRandomSearch::<2, 5>::try_new(bounds, CrsConfig::DEFAULT).unwrap();
+        let mut two = TwoPhase::try_new(crs, 5, CoordinateConfig::DEFAULT).unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(3);
+        let mut first = None;
+        for k in 0..5 {
+            let t = two.ask(&mut rng).unwrap();
+            first.get_or_insert(t);
+            two.tell(if k == 0 { 1.0 } else { 2.0 }).unwrap();
+        }
+        let global = Best {
+            theta: first.unwrap(),
+            cost: 1.0,
+        };
+        assert_eq!(two.best(), Some(global));
+        for cost in [5.0, 6.0, 7.0] {
+            two.ask(&mut rng).unwrap();
+            two.tell(cost).unwrap();
+            assert_eq!(two.phase(), Phase::Local);
+            assert_eq!(two.best(), Some(global));
+        }
+        assert_eq!(
+            two.local().and_then(|l| l.best()).map(|b| b.cost),
+            Some(5.0)
+        );
+        let t = two.ask(&mut rng).unwrap();
+        two.tell(0.5).unwrap();
+        assert_eq!(
+            two.best(),
+            Some(Best {
+                theta: t,
+                cost: 0.5
+            })
+        );
+    }
 
     /// Checks: after the global budget the local phase starts, its first candidate is the
     /// global best θ, the best θ is kept until the local phase improves on it, and the
