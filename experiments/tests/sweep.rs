@@ -22,8 +22,8 @@
 #![cfg(not(debug_assertions))]
 
 use ctrl_adapt::optimizer::{
-    CemConfig, ControlledRandomSearch, CrsConfig, DiagonalCem, Optimizer, Sracos, SracosConfig,
-    TwoPhase, Vector, Weighting,
+    CemConfig, ControlledRandomSearch, CrsConfig, DiagonalCem, Optimizer, Rockstar, RockstarConfig,
+    Sracos, SracosConfig, TwoPhase, Vector, Weighting,
 };
 use host_tests::auv::AuvConfig;
 use host_tests::median;
@@ -253,6 +253,14 @@ fn sweep_table() -> Vec<Row> {
             )
             .unwrap()
         }),
+        auv_entry("ROCK* (M = 5n, σ₀ = 0.25)", |_| {
+            Rockstar::<18, 90>::try_new(
+                auv_bounds,
+                Vector::zeros(),
+                rockstar(0.25 / auv_task::W_BOUND, AUV_BUDGET),
+            )
+            .unwrap()
+        }),
         hopper_entry("coordinate search (steps = half-range / 6)", |_| {
             hopper_task::coordinate_search(Vector::zeros(), HOPPER_BUDGET).unwrap()
         }),
@@ -288,7 +296,25 @@ fn sweep_table() -> Vec<Row> {
                 .unwrap()
             },
         ),
+        hopper_entry("ROCK* (M = 5n, σ₀ = half-range / 6)", |_| {
+            Rockstar::<31, 155>::try_new(
+                hop_bounds,
+                Vector::zeros(),
+                rockstar(1.0 / 6.0, HOPPER_BUDGET),
+            )
+            .unwrap()
+        }),
     ]
+}
+
+/// ROCK* with the authors' defaults, σ₀ in half-widths of the box (the exploration of the
+/// diagonal CEM's rows) and the budget.
+fn rockstar(initial_sigma: f32, budget: u32) -> RockstarConfig {
+    RockstarConfig {
+        initial_sigma,
+        max_evaluations: budget,
+        ..RockstarConfig::DEFAULT
+    }
 }
 
 /// Prints the sweep table and checks that every algorithm ran its budget to a finite final

@@ -73,14 +73,53 @@ pub mod sections {
         cmaes_ask = 11;
         /// `Cmaes::<18, 12>::tell`.
         cmaes_tell = 12;
-        /// `Rockstar::<18, 90>::ask`.
-        rockstar_ask = 13;
-        /// `Rockstar::<18, 90>::tell`.
-        rockstar_tell = 14;
-        /// `Rockstar::<31, 155>::ask` (the hopping leg's 31 parameters).
-        rockstar_hopper_ask = 15;
-        /// `Rockstar::<31, 155>::tell`.
-        rockstar_hopper_tell = 16;
+    }
+}
+
+/// Instruction counts of long calls from SysTick, for code too long to trace.
+///
+/// An exec trace costs a host-side line per executed instruction, which is too slow for
+/// calls of a million instructions (ROCK*'s `tell`) repeated hundreds of times. Under QEMU's
+/// `-icount shift=0` every instruction advances the virtual clock by exactly 1 ns, and QEMU
+/// clocks the mps2-an386's SysTick (processor clock source) at 25 MHz of that virtual
+/// time: one SysTick count is 40 instructions. [`Counter::measure`] reads the counter
+/// before and after a call, so its figure is exact to ±40 instructions, plus the two reads
+/// (a few instructions). Without `-icount` the figures are host-speed dependent and
+/// meaningless: `scripts/footprint` always passes it.
+pub mod icount {
+    use cortex_m::peripheral::SYST;
+    use cortex_m::peripheral::syst::SystClkSource;
+
+    /// Instructions per SysTick count under `-icount shift=0` (1 GHz virtual, 25 MHz clock).
+    pub const INSTRUCTIONS_PER_COUNT: u32 = 40;
+    /// SysTick's counter is 24 bits wide.
+    const MASK: u32 = 0x00FF_FFFF;
+
+    /// A free-running SysTick.
+    pub struct Counter {
+        _syst: SYST,
+    }
+
+    impl Counter {
+        /// Starts SysTick counting down from 2²⁴ − 1 on the processor clock, no interrupt.
+        pub fn new(mut syst: SYST) -> Self {
+            syst.set_clock_source(SystClkSource::Core);
+            syst.set_reload(MASK);
+            syst.clear_current();
+            syst.disable_interrupt();
+            syst.enable_counter();
+            Self { _syst: syst }
+        }
+
+        /// Runs `f` and returns its result with the instructions it took (one wrap of the
+        /// counter, 671 million instructions, at most).
+        #[inline(always)]
+        pub fn measure<R>(&mut self, f: impl FnOnce() -> R) -> (R, u32) {
+            let start = SYST::get_current();
+            let r = core::hint::black_box(f());
+            let end = SYST::get_current();
+            (r, (start.wrapping_sub(end) & MASK) * INSTRUCTIONS_PER_COUNT)
+        }
     }
 }
 

@@ -1,36 +1,87 @@
 //! Footprint benchmark of ROCK* (`Rockstar`), apart from the `bench` firmware because its
-//! state is large: `Rockstar<18, 90>` (the AUV's 18 parameters with the recommended memory
-//! of 5n rollouts) and `Rockstar<31, 155>` (the hopping leg's 31 parameters, 5n again).
-//! `scripts/footprint` runs it under QEMU with an instruction trace and counts the
-//! instructions of each `ask` and `tell` between the [`ctrl_adapt_firmware::bench`] markers,
-//! on the ill-conditioned ellipsoid of the same dimension over the box [−1, 1]ⁿ; it also
-//! prints the `size_of` of both and of the AUV adapter around the 18-parameter one, and the
-//! peak stack.
+//! state is large and its calls long: `Rockstar<18, 90>` (the AUV's 18 parameters with the
+//! recommended memory of 5n rollouts) and `Rockstar<31, 155>` (the hopping leg's 31
+//! parameters, 5n again), each for [`MEASURED`] evaluations of the ill-conditioned
+//! ellipsoid of its dimension over the box [−1, 1]ⁿ from 0: past the memory's filling and
+//! into its eviction.
+//!
+//! A `tell` runs about a million instructions, too many to trace one by one, so the counts
+//! come from SysTick under QEMU's `-icount shift=0`
+//! ([`ctrl_adapt_firmware::bench::icount`], exact to ±40 instructions): each `ask` and
+//! `tell` logs `footprint: sample rockstar_ask = N` (…`_tell`, and `rockstar_hopper_…` for
+//! N = 31), which `scripts/footprint` turns into the table's statistics. It also prints the
+//! `size_of` of both, of the AUV adapter around the 18-parameter one, and the peak stack.
 #![no_std]
 #![no_main]
 
 use auv_survey::{self as auv, AuvAdapter};
-use ctrl_adapt::{Bounds, Error, Rockstar, RockstarConfig, Vector};
-use ctrl_adapt_firmware::bench::sections;
-use ctrl_adapt_firmware::{exit_failure, exit_success, log_size, measure_optimizer, stack};
+use ctrl_adapt::{Bounds, Error, Optimizer, Rockstar, RockstarConfig, Status, Vector};
+use ctrl_adapt_firmware::bench::icount::Counter;
+use ctrl_adapt_firmware::functions::Ellipsoid;
+use ctrl_adapt_firmware::{exit_failure, exit_success, log_size, stack};
+use rand_core::SeedableRng;
+use rand_xoshiro::Xoshiro128PlusPlus;
 
 /// The AUV's parameters.
 const N: usize = auv::P;
 /// The hopping leg's parameters (10 periodic kernels for each of three gains, and the period).
 const N_HOPPER: usize = 31;
-/// Measured evaluations per size: past the two initial samples and the first covariance
-/// refactorings (every n updates), with the memory filled and then evicting.
-const MEASURED: u32 = 200;
+/// Measured evaluations per size: more than the larger memory (155), so the counts include
+/// the memory full and evicting, and several refactorings of the covariance (every n).
+pub const MEASURED: u32 = 200;
+
+/// Runs `MEASURED` ask/tell pairs of `rock` on the `D`-D ellipsoid, logging each call's
+/// instruction count as `footprint: sample {name}_ask = N` and `…_tell`.
+#[inline(never)]
+fn measure<const D: usize, const M: usize>(
+    counter: &mut Counter,
+    name: &str,
+    mut rock: Rockstar<D, M>,
+) -> Result<(), Error> {
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+    let ellipsoid = Ellipsoid::<D>::new();
+    for _ in 0..MEASURED {
+        if rock.status() != Status::Running {
+            break;
+        }
+        let (theta, ask) = counter.measure(|| rock.ask(&mut rng));
+        let cost = ellipsoid.eval(&theta?);
+        let (told, tell) = counter.measure(|| rock.tell(cost));
+        told?;
+        defmt::info!("footprint: sample {=str}_ask = {=u32}", name, ask);
+        defmt::info!("footprint: sample {=str}_tell = {=u32}", name, tell);
+    }
+    defmt::info!(
+        "footprint: measured {=str} evaluations = {=u32}",
+        name,
+        rock.evaluations()
+    );
+    Ok(())
+}
 
 #[cortex_m_rt::entry]
 fn main() -> ! {
     log_size!("Rockstar<18, 90>", Rockstar<N, 90>);
     log_size!("Rockstar<31, 155>", Rockstar<N_HOPPER, 155>);
     log_size!("Adapter with Rockstar<18, 90>", AuvAdapter<Rockstar<N, 90>>);
-    for _ in 0..8 {
-        sections::empty::measure(|| ());
+    let Some(peripherals) = cortex_m::Peripherals::take() else {
+        exit_failure()
+    };
+    let mut counter = Counter::new(peripherals.SYST);
+    // Calibration: an empty call, whose count is the reads' own cost (0 or 40).
+    for _ in 0..4 {
+        let ((), empty) = counter.measure(|| ());
+        defmt::info!("footprint: sample empty = {=u32}", empty);
     }
-    if let Err(e) = auv_size().and_then(|()| hopper_size()) {
+    let measured = auv::bounds()
+        .and_then(|b| Rockstar::<N, 90>::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT))
+        .and_then(|rock| measure(&mut counter, "rockstar", rock))
+        .and_then(|()| Bounds::uniform(-1.0, 1.0))
+        .and_then(|b| {
+            Rockstar::<N_HOPPER, 155>::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT)
+        })
+        .and_then(|rock| measure(&mut counter, "rockstar_hopper", rock));
+    if let Err(e) = measured {
         defmt::error!("benchmark failed: {}", e);
         exit_failure()
     }
@@ -39,30 +90,4 @@ fn main() -> ! {
         stack::peak_bytes()
     );
     exit_success()
-}
-
-#[inline(never)]
-fn auv_size() -> Result<(), Error> {
-    measure_optimizer!(
-        Rockstar::<N, 90>::try_new(auv::bounds()?, Vector::zeros(), RockstarConfig::DEFAULT),
-        N,
-        MEASURED,
-        rockstar_ask,
-        rockstar_tell
-    )
-}
-
-#[inline(never)]
-fn hopper_size() -> Result<(), Error> {
-    measure_optimizer!(
-        Rockstar::<N_HOPPER, 155>::try_new(
-            Bounds::uniform(-1.0, 1.0)?,
-            Vector::zeros(),
-            RockstarConfig::DEFAULT
-        ),
-        N_HOPPER,
-        MEASURED,
-        rockstar_hopper_ask,
-        rockstar_hopper_tell
-    )
 }
