@@ -4,7 +4,7 @@
 //! over the emulated UART, and prints the learning curve.
 //!
 //! ```sh
-//! (cd examples/firmware && cargo build --release)
+//! (cd examples/target-rig && cargo build --release)
 //! cargo run --release -p host-tests --bin pil -- [--optimizer coordinate|sracos|cem]
 //!     [--elf PATH] [--episodes N] [--ticks K] [--no-faults] [--no-learning-check]
 //!     [--firmware-log PATH]
@@ -182,7 +182,7 @@ fn report_of(values: &[f32]) -> Report {
 type AnyAuvOptimizer =
     AnyOptimizer<{ auv::P }, { auv::CEM_SAMPLES }, { auv::CEM_ELITE }, { auv::CRS_POINTS }>;
 
-/// The firmware's learner over `optimizer`, as `examples/firmware/src/bin/pil*.rs` build it.
+/// The firmware's learner over `optimizer`, as `examples/target-rig/src/bin/pil*.rs` build it.
 fn learner<O: Optimizer<{ auv::P }>>(
     optimizer: Result<O, ctrl_adapt::optimizer::Error>,
 ) -> AuvLearner<O> {
@@ -228,7 +228,7 @@ fn main() -> ExitCode {
     };
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let elf = args.elf.clone().unwrap_or_else(|| {
-        root.join("examples/firmware/target/thumbv7em-none-eabihf/release")
+        root.join("examples/target-rig/target/thumbv7em-none-eabihf/release")
             .join(args.firmware.elf_name())
     });
     let learning = args.episodes;

@@ -1,5 +1,5 @@
 //! The library's core invariants, run on the emulated Cortex-M4F (thumbv7em-none-eabihf,
-//! hardware `f32`, libm) under QEMU with defmt-test: `cargo test` in `examples/firmware/`.
+//! hardware `f32`, libm) under QEMU with defmt-test: `cargo test` in `examples/target-rig/`.
 //!
 //! These mirror the host unit and property tests of `src/optimizer.rs`,
 //! `src/optimizer/coordinate.rs`, the controller layer (the policy's envelope, the adapter's

@@ -3,7 +3,7 @@
 //! reports the optimizer's size and the peak stack, and exits 0 only if the search converged
 //! to the known minimiser.
 //!
-//! `cargo run --release --bin coordinate` (from `examples/firmware/`).
+//! `cargo run --release --bin coordinate` (from `examples/target-rig/`).
 #![no_std]
 #![no_main]
 
