@@ -101,6 +101,39 @@ impl<const N: usize> Bounds<N> {
     }
 }
 
+/// The affine map between a box and [−1, 1]ⁿ, x = (θ − centre) / half-width, for the
+/// optimizers that search in normalised coordinates (`Cmaes`, `Rockstar`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub(crate) struct UnitMap<const N: usize> {
+    centre: Vector<N>,
+    half: Vector<N>,
+}
+
+impl<const N: usize> UnitMap<N> {
+    /// The map of `bounds`. Halves first: `upper − lower` would overflow near ±f32::MAX. The
+    /// floor keeps the division of [`Self::unit_of`] finite for boxes narrower than two
+    /// subnormals.
+    pub(crate) fn new(bounds: &Bounds<N>) -> Self {
+        let (lo, up) = (bounds.lower(), bounds.upper());
+        Self {
+            centre: Vector::from_fn(|i, _| 0.5 * up[i] + 0.5 * lo[i]),
+            half: Vector::from_fn(|i, _| (0.5 * up[i] - 0.5 * lo[i]).max(f32::MIN_POSITIVE)),
+        }
+    }
+
+    /// x = (θ − centre) / half-width, not clamped.
+    pub(crate) fn unit_of(&self, theta: &Vector<N>) -> Vector<N> {
+        (theta - self.centre).component_div(&self.half)
+    }
+
+    /// θ = centre + half-width ∘ x, projected onto `bounds` (rounding, or x outside
+    /// [−1, 1]ⁿ).
+    pub(crate) fn theta_of(&self, bounds: &Bounds<N>, x: &Vector<N>) -> Vector<N> {
+        bounds.clamp(&(self.centre + self.half.component_mul(x)))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

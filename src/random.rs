@@ -47,6 +47,22 @@ pub fn normal_pair_f32<R: RngCore + ?Sized>(rng: &mut R) -> [f32; 2] {
     [0.0, 0.0]
 }
 
+/// z ~ N(0, I) in `N` dimensions: ⌈N/2⌉ [`normal_pair_f32`] draws, always (the second
+/// value of the last pair is dropped when N is odd).
+pub(crate) fn normal_vector_f32<const N: usize, R: RngCore + ?Sized>(
+    rng: &mut R,
+) -> crate::Vector<N> {
+    let mut z = crate::Vector::<N>::zeros();
+    let mut pair = [0.0f32; 2];
+    for (i, v) in z.iter_mut().enumerate() {
+        if i % 2 == 0 {
+            pair = normal_pair_f32(rng);
+        }
+        *v = pair[i % 2];
+    }
+    z
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

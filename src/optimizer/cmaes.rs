@@ -117,7 +117,10 @@ use nalgebra::{
 use rand_core::RngCore;
 
 use super::ledger_accessors;
-use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, keep_ranked, normal_pair_f32};
+use super::{Ledger, Optimizer, Status, keep_ranked};
+use crate::bounds::UnitMap;
+use crate::random::normal_vector_f32;
+use crate::{Bounds, Error, Vector};
 
 /// Eigenvalues of C are floored at this fraction of the largest.
 const EIGEN_FLOOR: f32 = 1e-14;
@@ -370,9 +373,8 @@ pub struct Cmaes<const N: usize, const L: usize> {
     bounds: Bounds<N>,
     config: CmaesConfig,
     constants: Constants<L>,
-    /// Centre and half-width of the box: θ = centre + half ∘ x.
-    centre: Vector<N>,
-    half: Vector<N>,
+    /// The box's map to [−1, 1]ⁿ: θ = centre + half-width ∘ x.
+    unit: UnitMap<N>,
     /// m, normalised (may lie outside [−1, 1]ⁿ).
     mean: Vector<N>,
     sigma: f32,
@@ -412,18 +414,13 @@ where
         }
         config.validate()?;
         bounds.check(&mean, "mean")?;
-        let (lo, up) = (bounds.lower(), bounds.upper());
-        // Halves first: `upper − lower` overflows for bounds near ±f32::MAX. The floor keeps
-        // the division below finite for boxes narrower than two subnormals.
-        let half = Vector::<N>::from_fn(|i, _| (0.5 * up[i] - 0.5 * lo[i]).max(f32::MIN_POSITIVE));
-        let centre = Vector::<N>::from_fn(|i, _| 0.5 * up[i] + 0.5 * lo[i]);
-        let normalised = (mean - centre).component_div(&half);
+        let unit = UnitMap::new(&bounds);
+        let normalised = unit.unit_of(&mean);
         Ok(Self {
             bounds,
             config,
             constants: Constants::new(N),
-            centre,
-            half,
+            unit,
             mean: normalised.map(|v| v.clamp(-1.0, 1.0)),
             sigma: config.initial_sigma,
             covariance: SMatrix::identity(),
@@ -495,21 +492,7 @@ where
 
     /// θ of a normalised point of the box.
     fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
-        self.bounds
-            .clamp(&(self.centre + self.half.component_mul(x)))
-    }
-
-    /// z ~ N(0, I): ⌈N/2⌉ normal pairs, always.
-    fn draw<R: RngCore + ?Sized>(rng: &mut R) -> Vector<N> {
-        let mut z = Vector::<N>::zeros();
-        let mut pair = [0.0f32; 2];
-        for (i, v) in z.iter_mut().enumerate() {
-            if i % 2 == 0 {
-                pair = normal_pair_f32(rng);
-            }
-            *v = pair[i % 2];
-        }
-        z
+        self.unit.theta_of(&self.bounds, x)
     }
 
     /// y = B D z.
@@ -654,7 +637,7 @@ where
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
-        let z = Self::draw(rng);
+        let z = normal_vector_f32(rng);
         let x = self.mean + self.step_of(&z) * self.sigma;
         // A NaN coordinate projects to −1 and its excess is NaN, ranked as +∞ below.
         let projected = x.map(|v| if v.is_nan() { -1.0 } else { v.clamp(-1.0, 1.0) });

@@ -175,7 +175,8 @@ use rand_core::RngCore;
 
 use super::ledger_accessors;
 use super::{Ledger, Optimizer, Status};
-use crate::random::normal_pair_f32;
+use crate::bounds::UnitMap;
+use crate::random::normal_vector_f32;
 use crate::{Bounds, Error, Vector};
 
 /// σ never falls below this (the kernel width ϑσ² stays a normal f32).
@@ -462,9 +463,8 @@ pub struct Rockstar<const N: usize, const M: usize> {
     bounds: Bounds<N>,
     config: RockstarConfig,
     constants: Constants,
-    /// Centre and half-width of the box: θ = centre + half ∘ x.
-    centre: Vector<N>,
-    half: Vector<N>,
+    /// The box's map to [−1, 1]ⁿ: θ = centre + half-width ∘ x.
+    unit: UnitMap<N>,
     /// θ*, normalised, always inside [−1, 1]ⁿ and finite.
     theta_star: Vector<N>,
     /// A⁻¹ θ*.
@@ -518,18 +518,13 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         }
         let constants = Constants::new(N, &config)?;
         bounds.check(&start, "start")?;
-        let (lo, up) = (bounds.lower(), bounds.upper());
-        // Halves first: `upper − lower` overflows for bounds near ±f32::MAX. The floor keeps
-        // the division below finite for boxes narrower than two subnormals.
-        let half = Vector::<N>::from_fn(|i, _| (0.5 * up[i] - 0.5 * lo[i]).max(f32::MIN_POSITIVE));
-        let centre = Vector::<N>::from_fn(|i, _| 0.5 * up[i] + 0.5 * lo[i]);
-        let x = clamp_unit(&(start - centre).component_div(&half));
+        let unit = UnitMap::new(&bounds);
+        let x = clamp_unit(&unit.unit_of(&start));
         Ok(Self {
             bounds,
             config,
             constants,
-            centre,
-            half,
+            unit,
             theta_star: x,
             theta_star_white: x,
             sigma: config.initial_sigma,
@@ -630,21 +625,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
 
     /// θ of a normalised point of the box.
     fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
-        self.bounds
-            .clamp(&(self.centre + self.half.component_mul(x)))
-    }
-
-    /// z ~ N(0, I): ⌈N/2⌉ normal pairs, always.
-    fn draw<R: RngCore + ?Sized>(rng: &mut R) -> Vector<N> {
-        let mut z = Vector::<N>::zeros();
-        let mut pair = [0.0f32; 2];
-        for (i, v) in z.iter_mut().enumerate() {
-            if i % 2 == 0 {
-                pair = normal_pair_f32(rng);
-            }
-            *v = pair[i % 2];
-        }
-        z
+        self.unit.theta_of(&self.bounds, x)
     }
 
     /// Remembers a rollout (whitened), forgetting the oldest when the memory is full.
@@ -876,7 +857,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         if let Some(ever) = self.ledger.best()
             && 0.5 * ever.cost < near.floor
         {
-            let x = clamp_unit(&(ever.theta - self.centre).component_div(&self.half));
+            let x = clamp_unit(&self.unit.unit_of(&ever.theta));
             let w = self.inverse * x;
             let all = self.regression(Set::All);
             consider(self.descend(Set::All, &all, &w, h2), &mut best);
@@ -1027,7 +1008,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
-        let z = Self::draw(rng);
+        let z = normal_vector_f32(rng);
         let x = self.theta_star + self.factor * z * self.sigma;
         let projected = clamp_unit(&x);
         self.drawn = projected;
