@@ -18,7 +18,7 @@
 //!   deployable point (θ* or the mean; one evaluation outside the budget) and the rollouts
 //!   ROCK* needs to reach each seed's best baseline cost; writes the mean learning curves
 //!   to `target/experiments/rockstar_reaching500.svg` and `rockstar_rhythmic400.svg`.
-//!   About 5 minutes on one core with 10 seeds (ROCK* at n = 500 costs ≈ 6 ms a
+//!   About 4 minutes on one core with 10 seeds (ROCK* at n = 500 costs ≈ 5 ms a
 //!   rollout).
 //! * `sweep50`, `sweep500`, `sweep400`: the initial exploration of each method on tuning
 //!   seeds 100.. (disjoint from the test seeds 0..10): 5 seeds for the 50-parameter arm,
@@ -94,8 +94,8 @@ fn sweep50() {
     let mut cost = |t: &Vector<50>| arm.cost(t);
     let seeds: Vec<u64> = (100..105).collect();
     println!("## 50-parameter via-point arm, tuning seeds {seeds:?}, {ROLLOUTS} rollouts");
-    println!("| method | std | mean lowest | median lowest | seconds |");
-    println!("|---|---:|---:|---:|---:|");
+    println!("| method | std | mean lowest | median lowest | fewest rollouts run | seconds |");
+    println!("|---|---:|---:|---:|---:|---:|");
     for method in [
         Method::Rockstar,
         Method::Cmaes,
@@ -104,24 +104,23 @@ fn sweep50() {
     ] {
         for std in [0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0] {
             let clock = Instant::now();
-            let finals: Vec<f32> = seeds
+            let sessions: Vec<Session> = seeds
                 .iter()
-                .map(|&seed| {
-                    let s = match method {
-                        Method::Cmaes => rockstar_arm::cmaes::<50, 15>(
-                            bounds, start, REACH_HALF, std, ROLLOUTS, seed, &mut cost,
-                        )
-                        .expect("a valid configuration"),
-                        _ => session::<50, 250>(
-                            method, &bounds, start, REACH_HALF, std, seed, &mut cost,
-                        ),
-                    };
-                    s.final_lowest()
+                .map(|&seed| match method {
+                    Method::Cmaes => rockstar_arm::cmaes::<50, 15>(
+                        bounds, start, REACH_HALF, std, ROLLOUTS, seed, &mut cost,
+                    )
+                    .expect("a valid configuration"),
+                    _ => {
+                        session::<50, 250>(method, &bounds, start, REACH_HALF, std, seed, &mut cost)
+                    }
                 })
                 .collect();
+            let finals: Vec<f32> = sessions.iter().map(Session::final_lowest).collect();
+            let fewest = sessions.iter().map(|s| s.rollouts).min().unwrap_or(0);
             let (mean, median) = mean_median(&finals);
             println!(
-                "| {} | {std} | {mean:.4e} | {median:.4e} | {:.1} |",
+                "| {} | {std} | {mean:.4e} | {median:.4e} | {fewest} | {:.1} |",
                 method.name(),
                 clock.elapsed().as_secs_f64()
             );
@@ -148,12 +147,12 @@ fn sweep_big<const N: usize, const M: usize, C: FnMut(&Vector<N>) -> f32>(
         "## {}, tuning seeds {seeds:?}, {ROLLOUTS} rollouts",
         task.name
     );
-    println!("| method | std | mean lowest | seconds |");
-    println!("|---|---:|---:|---:|");
+    println!("| method | std | mean lowest | fewest rollouts run | seconds |");
+    println!("|---|---:|---:|---:|---:|");
     for method in [Method::Rockstar, Method::PiBbFixed, Method::PiBbAdapted] {
         for &std in stds {
             let clock = Instant::now();
-            let finals: Vec<f32> = seeds
+            let sessions: Vec<Session> = seeds
                 .iter()
                 .map(|&seed| {
                     session::<N, M>(
@@ -165,12 +164,13 @@ fn sweep_big<const N: usize, const M: usize, C: FnMut(&Vector<N>) -> f32>(
                         seed,
                         &mut task.cost,
                     )
-                    .final_lowest()
                 })
                 .collect();
+            let finals: Vec<f32> = sessions.iter().map(Session::final_lowest).collect();
+            let fewest = sessions.iter().map(|s| s.rollouts).min().unwrap_or(0);
             let (mean, _) = mean_median(&finals);
             println!(
-                "| {} | {std} | {mean:.4e} | {:.1} |",
+                "| {} | {std} | {mean:.4e} | {fewest} | {:.1} |",
                 method.name(),
                 clock.elapsed().as_secs_f64()
             );
@@ -206,17 +206,18 @@ fn table_big<const N: usize, const M: usize, C: FnMut(&Vector<N>) -> f32>(
         all.push((method, std, sessions, clock.elapsed().as_secs_f64()));
     }
     println!(
-        "| method | std | mean lowest | median lowest | mean deployed | per-seed lowest | seconds |"
+        "| method | std | mean lowest | median lowest | mean deployed | per-seed lowest | fewest rollouts run | seconds |"
     );
-    println!("|---|---:|---:|---:|---:|---|---:|");
+    println!("|---|---:|---:|---:|---:|---|---:|---:|");
     for (method, std, sessions, seconds) in &all {
         let finals: Vec<f32> = sessions.iter().map(Session::final_lowest).collect();
         let deployed: Vec<f32> = sessions.iter().map(|s| s.deployed).collect();
         let (mean, median) = mean_median(&finals);
         let (deployed_mean, _) = mean_median(&deployed);
         let per_seed: Vec<String> = finals.iter().map(|c| format!("{c:.3e}")).collect();
+        let fewest = sessions.iter().map(|s| s.rollouts).min().unwrap_or(0);
         println!(
-            "| {} | {std} | {mean:.4e} | {median:.4e} | {deployed_mean:.4e} | {} | {seconds:.0} |",
+            "| {} | {std} | {mean:.4e} | {median:.4e} | {deployed_mean:.4e} | {} | {fewest} | {seconds:.0} |",
             method.name(),
             per_seed.join(" ")
         );
@@ -308,11 +309,11 @@ fn main() {
             "sweep50" => sweep50(),
             "sweep500" => sweep_big::<500, 2500, _>(
                 &mut reaching(),
-                &grid.unwrap_or(vec![0.5, 1.0, 2.0, 5.0, 20.0, 50.0, 200.0]),
+                &grid.unwrap_or(vec![0.2, 0.5, 1.0, 2.0, 5.0, 20.0, 50.0, 200.0]),
             ),
             "sweep400" => sweep_big::<400, 2000, _>(
                 &mut rhythmic_task(),
-                &grid.unwrap_or(vec![0.0003, 0.001, 0.003, 0.01, 0.03, 0.1, 0.3]),
+                &grid.unwrap_or(vec![0.0001, 0.0003, 0.001, 0.003, 0.01, 0.03, 0.1, 0.3]),
             ),
             "tables" => {
                 table_big::<500, 2500, _>(&mut reaching(), tuned::REACHING_500, seeds);

@@ -11,6 +11,11 @@
 //! the last rollout is reported next to it as one extra evaluation that is *not* counted
 //! in the budget.
 //!
+//! Every session spends its whole budget: ROCK*'s and CMA-ES's stopping tolerances are set
+//! to 0 (with ROCK*'s default, σ ≤ 10⁻⁶ of the half-width, at least 8 of 10 rhythmic-task
+//! sessions declared convergence early, the shortest after 1,248 of its 3,000 rollouts).
+//! DiagonalCem has none by default.
+//!
 //! The exploration of each method is a standard deviation in the task's parameter units
 //! (`std`): σ₀ = `std` / half-width for [`Rockstar`] and [`Cmaes`] (both search in
 //! box-normalised coordinates), an initial variance `std`² for [`DiagonalCem`].
@@ -78,7 +83,8 @@ pub fn lowest_so_far<const N: usize, O: Optimizer<N>>(
     Ok(lowest)
 }
 
-/// ROCK* with memory `M`, σ₀ = `std`/half-width and the library's defaults otherwise.
+/// ROCK* with memory `M`, σ₀ = `std`/half-width, no stopping tolerance (every session
+/// spends its budget, as in the paper) and the library's defaults otherwise.
 /// Built in a `Box` (`Rockstar<500, 2500>` holds 7 MB: call it on a thread with a large
 /// stack).
 pub fn rockstar<const N: usize, const M: usize>(
@@ -92,6 +98,7 @@ pub fn rockstar<const N: usize, const M: usize>(
 ) -> Result<Session, Error> {
     let config = RockstarConfig {
         initial_sigma: std / half_width,
+        tolerance: 0.0,
         max_evaluations: rollouts as u32,
         ..RockstarConfig::DEFAULT
     };
@@ -104,8 +111,8 @@ pub fn rockstar<const N: usize, const M: usize>(
     })
 }
 
-/// CMA-ES with population `L`, σ₀ = `std`/half-width and the library's defaults otherwise
-/// (N ≤ 127).
+/// CMA-ES with population `L`, σ₀ = `std`/half-width, no stopping tolerance and the
+/// library's defaults otherwise (N ≤ 127).
 pub fn cmaes<const N: usize, const L: usize>(
     bounds: Bounds<N>,
     start: Vector<N>,
@@ -120,6 +127,7 @@ where
 {
     let config = CmaesConfig {
         initial_sigma: std / half_width,
+        tolerance: 0.0,
         max_evaluations: rollouts as u32,
         ..CmaesConfig::DEFAULT
     };
