@@ -4,3 +4,4 @@
 //! release-only claims (`cargo test --release -p experiments`).
 
 pub mod hopping;
+pub mod rockstar_arm;

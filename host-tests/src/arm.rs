@@ -78,7 +78,8 @@ const BETA_Z: f64 = ALPHA_Z / 4.0;
 /// α_x = ln 100: x(τ) = 0.01.
 const ALPHA_X: f64 = 4.605_170_185_988_091;
 const STEPS: usize = 500;
-const VIA_STEP: usize = 300;
+/// The integration step after which the via point is checked (t = 0.3 s).
+pub const VIA_STEP: usize = 300;
 
 /// The two terms of the episode cost.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -19,6 +19,8 @@ pub mod hopper_task;
 pub mod hopper_tuning;
 pub mod pil;
 pub mod plots;
+pub mod reaching;
+pub mod rhythmic;
 
 /// What one optimisation run produced.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,5 +1,6 @@
 //! SVG figures of the demo (plotters, SVG backend only): learning curves, the AUV's x–z
-//! trajectories over the current and the target sphere, the hopping leg's apex heights.
+//! trajectories over the current and the target sphere, the hopping leg's apex heights, and
+//! several optimizers' cost curves on a log axis ([`log_cost_curves`]).
 
 use std::path::Path;
 
@@ -104,6 +105,76 @@ pub fn learning_curves(path: &Path, curves: &[Curve], y_label: &str) -> PlotResu
     for (area, curve) in panels.iter().zip(curves) {
         curve_panel(area, curve, y_label)?;
     }
+    root.present()?;
+    Ok(())
+}
+
+/// One series of [`log_cost_curves`].
+pub struct Series<'a> {
+    /// Legend entry.
+    pub name: &'a str,
+    /// The value after each rollout (rollout k + 1 at index k), all > 0.
+    pub values: &'a [f64],
+}
+
+/// Several cost curves against rollouts in one panel, log-scaled y axis (e.g. the mean
+/// lowest cost so far of each optimizer).
+pub fn log_cost_curves(path: &Path, caption: &str, series: &[Series], y_label: &str) -> PlotResult {
+    let n = series
+        .iter()
+        .map(|s| s.values.len())
+        .max()
+        .unwrap_or(2)
+        .max(2) as f64;
+    let positive = || {
+        series
+            .iter()
+            .flat_map(|s| s.values.iter().copied())
+            .filter(|v| v.is_finite() && *v > 0.0)
+    };
+    let lo = positive().fold(f64::INFINITY, f64::min);
+    let hi = positive().fold(f64::NEG_INFINITY, f64::max);
+    let (lo, hi) = if lo.is_finite() && hi > lo {
+        (lo / 1.5, hi * 1.5)
+    } else {
+        (1.0, 10.0)
+    };
+    let root = SVGBackend::new(path, (760, 500)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(caption, ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(1f64..n, (lo..hi).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("rollouts")
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .y_desc(y_label)
+        .y_label_formatter(&|y| format!("{y:.1e}"))
+        .light_line_style(WHITE)
+        .draw()?;
+    let colours = [BLUE_ISH, ORANGE, GREEN, GREY, BLACK];
+    for (s, colour) in series.iter().zip(colours.iter().cycle()) {
+        let points = s
+            .values
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.is_finite() && **v > 0.0)
+            .map(|(k, v)| ((k + 1) as f64, *v));
+        let style = colour.stroke_width(2);
+        chart
+            .draw_series(LineSeries::new(points, style))?
+            .label(s.name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
     root.present()?;
     Ok(())
 }
