@@ -11,6 +11,8 @@ pub mod cost;
 pub mod error;
 pub mod optimizer;
 pub mod random;
+#[cfg(feature = "serde")]
+pub mod record;
 pub mod vector;
 
 #[cfg(test)]
