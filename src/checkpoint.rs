@@ -1,6 +1,6 @@
 //! A power-fail-safe checkpoint store on NOR flash, built on `sequential-storage`'s map.
 //!
-//! A checkpoint is one [record](crate::record) (an adapter, an optimizer, with the caller's RNG
+//! A checkpoint is one [record] (an adapter, an optimizer, with the caller's RNG
 //! as a pair: anything [`Persistent`]). A `sequential-storage` item must fit in one flash
 //! page, while the record of a [`Cmaes`](crate::Cmaes) or a [`Rockstar`](crate::Rockstar)
 //! may not, so a record is written as numbered chunks plus a commit item, into one of two

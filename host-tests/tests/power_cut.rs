@@ -183,23 +183,23 @@ type Plant = CorrectedPd<1, 2, 2, 2, StateFeatures<2>>;
 type Learning<O> = Adapter<O, Plant, QuadraticCost<1>, 2, 2, 1>;
 
 /// What a checkpoint holds: the adapter (optimizer, mode, counters, best θ, controller,
-/// shaper) and the caller's RNG, which the next candidates are drawn from.
+/// shaper), the caller's RNG, which the next candidates are drawn from, and the episodes run.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(bound = "O: Serialize + DeserializeOwned")]
-struct Learner<O> {
-    adapter: Learning<O>,
+#[serde(bound = "Ad: Serialize + DeserializeOwned")]
+struct Learner<Ad> {
+    adapter: Ad,
     rng: Xoshiro128PlusPlus,
     episodes: u32,
 }
 
-impl<O: Persistent> Persistent for Learner<O> {
-    const SHAPE: Shape = Shape::new(*b"LRNR", &[]).nest(Learning::<O>::SHAPE);
+impl<Ad: Persistent> Persistent for Learner<Ad> {
+    const SHAPE: Shape = Shape::new(*b"LRNR", &[]).nest(Ad::SHAPE);
 }
 
 const DT: f32 = 0.05;
 const TICKS: u32 = 40;
 
-fn learner<O: Optimizer<2>>(optimizer: O) -> Learner<O> {
+fn learner<O: Optimizer<2>>(optimizer: O) -> Learner<Learning<O>> {
     let pd = Pd::<1>::try_new(Vector::repeat(4.0), Vector::repeat(3.6))
         .unwrap()
         .with_limit(Vector::repeat(5.0))
@@ -227,7 +227,7 @@ fn learner<O: Optimizer<2>>(optimizer: O) -> Learner<O> {
 }
 
 /// One episode on the disturbed double integrator; the θ it ran and the cost told, as bits.
-fn episode<O: Optimizer<2>>(l: &mut Learner<O>) -> ([u32; 2], u32) {
+fn episode<O: Optimizer<2>>(l: &mut Learner<Learning<O>>) -> ([u32; 2], u32) {
     let theta = l.adapter.begin_episode(&mut l.rng).unwrap();
     let mut plant = DoubleIntegrator::new(-1.5, f64::from(DT));
     for _ in 0..TICKS {
@@ -245,7 +245,7 @@ fn episode<O: Optimizer<2>>(l: &mut Learner<O>) -> ([u32; 2], u32) {
 }
 
 fn bytes<T: Persistent>(value: &T) -> Vec<u8> {
-    let mut buf = vec![0u8; RECORD];
+    let mut buf = vec![0u8; 16 * 1024];
     record::save(value, &mut buf).unwrap().to_vec()
 }
 
@@ -256,13 +256,13 @@ fn store(flash: &mut CutFlash) -> Store<'_> {
 }
 
 /// Boot: the newest intact checkpoint, or the initial learner on a flash that has none.
-fn boot<O>(store: &mut Store<'_>, initial: &Learner<O>) -> Learner<O>
+fn boot<O>(store: &mut Store<'_>, initial: &Learner<Learning<O>>) -> Learner<Learning<O>>
 where
     O: Optimizer<2> + Persistent + Clone,
 {
     let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
     store
-        .load::<Learner<O>>(&mut rec, &mut item)
+        .load::<Learner<Learning<O>>>(&mut rec, &mut item)
         .unwrap()
         .unwrap_or_else(|| initial.clone())
 }
@@ -278,7 +278,7 @@ struct Reference {
     erases: u64,
 }
 
-fn reference<O>(initial: &Learner<O>, episodes: usize) -> Reference
+fn reference<O>(initial: &Learner<Learning<O>>, episodes: usize) -> Reference
 where
     O: Optimizer<2> + Persistent + Clone,
 {
@@ -313,7 +313,7 @@ where
 
 /// Continues `l` (which has run `l.episodes`) to `episodes` with a save after each, and
 /// checks every event and the final state against the reference.
-fn finish<O>(mut l: Learner<O>, flash: &mut CutFlash, r: &Reference, episodes: usize)
+fn finish<O>(mut l: Learner<Learning<O>>, flash: &mut CutFlash, r: &Reference, episodes: usize)
 where
     O: Optimizer<2> + Persistent + Clone,
 {
@@ -340,7 +340,7 @@ where
     let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
     let (mut cuts, mut after) = (0, 0);
     for save in 0..episodes {
-        let state = record::load::<Learner<O>>(&r.records[save + 1]).unwrap();
+        let state = record::load::<Learner<Learning<O>>>(&r.records[save + 1]).unwrap();
         // k = ops + 1: the cut comes just after the save (its last word is the commit's).
         for k in 1..=r.ops[save] + 1 {
             let mut flash = r.images[save].clone();
@@ -430,7 +430,7 @@ fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
     let mut erased = CutFlash::erased();
     let mut s = store(&mut erased);
     assert!(
-        s.load::<Learner<Cmaes<2, 4>>>(&mut rec, &mut item)
+        s.load::<Learner<Learning<Cmaes<2, 4>>>>(&mut rec, &mut item)
             .unwrap()
             .is_none()
     );
@@ -438,7 +438,7 @@ fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
 
     let r = reference(&initial, EPISODES);
     let mut flash = r.images[EPISODES - 1].clone();
-    let last = record::load::<Learner<Cmaes<2, 4>>>(&r.records[EPISODES]).unwrap();
+    let last = record::load::<Learner<Learning<Cmaes<2, 4>>>>(&r.records[EPISODES]).unwrap();
     store(&mut flash).save(&last, &mut rec, &mut item).unwrap();
     let (mut newest, mut fallback, mut landed) = (0, 0, 0);
     for at in 0..FLASH {
@@ -473,8 +473,198 @@ fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
     // An intact checkpoint of other sizes is refused by name, not loaded nor skipped.
     assert_eq!(
         store(&mut flash)
-            .load::<Learner<Cmaes<2, 5>>>(&mut rec, &mut item)
+            .load::<Learner<Learning<Cmaes<2, 5>>>>(&mut rec, &mut item)
             .unwrap_err(),
         CheckpointError::Record(RecordError::Shape)
     );
+}
+
+/// A NOR flash in RAM with 4 KiB pages (a common internal-flash page) that counts the bytes
+/// written and the pages erased, for the size and wear figures.
+struct MeteredFlash {
+    data: Vec<u8>,
+    written: u64,
+    erases: u64,
+}
+
+const BIG_PAGE: usize = 4096;
+
+impl ErrorType for MeteredFlash {
+    type Error = FlashError;
+}
+
+impl ReadNorFlash for MeteredFlash {
+    const READ_SIZE: usize = WORD;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
+        let at = offset as usize;
+        let src = self
+            .data
+            .get(at..at + bytes.len())
+            .ok_or(FlashError::Bounds)?;
+        bytes.copy_from_slice(src);
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        self.data.len()
+    }
+}
+
+impl NorFlash for MeteredFlash {
+    const WRITE_SIZE: usize = WORD;
+    const ERASE_SIZE: usize = BIG_PAGE;
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
+        let range = self
+            .data
+            .get_mut(from as usize..to as usize)
+            .ok_or(FlashError::Bounds)?;
+        range.fill(0xff);
+        self.erases += ((to - from) as usize / BIG_PAGE) as u64;
+        Ok(())
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
+        let at = offset as usize;
+        let dst = self
+            .data
+            .get_mut(at..at + bytes.len())
+            .ok_or(FlashError::Bounds)?;
+        if dst.iter().any(|&b| b != 0xff) {
+            return Err(FlashError::NotErased);
+        }
+        dst.copy_from_slice(bytes);
+        self.written += bytes.len() as u64;
+        Ok(())
+    }
+}
+
+/// Figures for one optimizer inside the AUV adapter.
+struct Figures {
+    record: usize,
+    written_per_save: f64,
+    erases_per_save: f64,
+}
+
+/// The AUV adapter (P = 18) with `optimizer`, saved with the RNG after each of `episodes`
+/// evaluations of a sphere into a store of two slots of `slot_pages` 4 KiB pages with 1 KiB
+/// items; the largest record, the flash bytes written and the pages erased per save. Checks
+/// that the last checkpoint loads back bit for bit.
+fn measure<O>(mut optimizer: O, episodes: u32, slot_pages: usize) -> Figures
+where
+    O: Optimizer<{ auv_survey::P }> + Persistent + Clone,
+{
+    use host_tests::auv_task;
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(5);
+    let slot = (slot_pages * BIG_PAGE) as u32;
+    let mut flash = MeteredFlash {
+        data: vec![0xff; 2 * slot as usize],
+        written: 0,
+        erases: 0,
+    };
+    let (mut rec, mut item) = (vec![0u8; 16 * 1024], [0u8; 1024]);
+    let mut last = Vec::new();
+    let mut record = 0;
+    {
+        let mut store =
+            CheckpointStore::try_new(BlockingAsync::new(&mut flash), [0..slot, slot..2 * slot])
+                .unwrap();
+        for n in 0..episodes {
+            let theta = optimizer.ask(&mut rng).unwrap();
+            optimizer.tell(theta.norm_squared()).unwrap();
+            let learner = Learner {
+                adapter: auv_task::adapter(optimizer.clone(), 1000, Vector::zeros()).unwrap(),
+                rng: rng.clone(),
+                episodes: n + 1,
+            };
+            store.save(&learner, &mut rec, &mut item).unwrap();
+            last = bytes(&learner);
+            record = record.max(last.len());
+        }
+        let loaded = store
+            .load::<Learner<auv_task::AuvAdapter<O>>>(&mut rec, &mut item)
+            .unwrap()
+            .unwrap();
+        assert_eq!(bytes(&loaded), last);
+    }
+    Figures {
+        record,
+        written_per_save: flash.written as f64 / f64::from(episodes),
+        erases_per_save: flash.erases as f64 / f64::from(episodes),
+    }
+}
+
+/// Prints the bytes of a checkpoint (the AUV adapter, P = 18, with its optimizer and the
+/// RNG) per optimizer, the flash bytes written and the 4 KiB pages erased per save, over 60
+/// saves into two slots of 4 pages (ROCK*: 8); checks each last checkpoint loads back.
+#[test]
+fn checkpoint_sizes_per_optimizer() {
+    use ctrl_adapt::optimizer::{
+        ControlledRandomSearch, CrsConfig, Rockstar, RockstarConfig, TwoPhase,
+    };
+    let b = Bounds::<18>::uniform(-1.0, 1.0).unwrap();
+    let z = Vector::<18>::zeros();
+    let crs = || ControlledRandomSearch::<18, 100>::try_new(b, CrsConfig::DEFAULT).unwrap();
+    let rows = [
+        (
+            "CoordinateSearch<18>",
+            measure(
+                CoordinateSearch::try_new(b, z, CoordinateConfig::DEFAULT).unwrap(),
+                60,
+                4,
+            ),
+        ),
+        (
+            "Sracos<18>",
+            measure(
+                Sracos::<18>::try_new(b, SracosConfig::DEFAULT).unwrap(),
+                60,
+                4,
+            ),
+        ),
+        (
+            "DiagonalCem<18, 10, 5>",
+            measure(
+                DiagonalCem::<18, 10, 5>::try_new(b, z, CemConfig::DEFAULT).unwrap(),
+                60,
+                4,
+            ),
+        ),
+        (
+            "Cmaes<18, 12>",
+            measure(
+                Cmaes::<18, 12>::try_new(b, z, CmaesConfig::DEFAULT).unwrap(),
+                60,
+                4,
+            ),
+        ),
+        ("ControlledRandomSearch<18, 100>", measure(crs(), 60, 8)),
+        (
+            "TwoPhase<ControlledRandomSearch<18, 100>, 18>",
+            measure(
+                TwoPhase::try_new(crs(), 30, CoordinateConfig::DEFAULT).unwrap(),
+                60,
+                8,
+            ),
+        ),
+        (
+            "Rockstar<18, 90>",
+            measure(
+                Rockstar::<18, 90>::try_new(b, z, RockstarConfig::DEFAULT).unwrap(),
+                60,
+                8,
+            ),
+        ),
+    ];
+    println!(
+        "| optimizer in the AUV adapter | record (B) | flash written per save (B) | 4 KiB page erases per save |"
+    );
+    println!("| --- | --- | --- | --- |");
+    for (name, f) in rows {
+        println!(
+            "| `{name}` | {} | {:.0} | {:.3} |",
+            f.record, f.written_per_save, f.erases_per_save
+        );
+    }
 }

@@ -47,7 +47,7 @@
 //! * **Distinct-candidate fallback.** After 100 duplicate draws from the box ZOOpt starts a
 //!   new iteration (new coin, new classifier) and ends the run after 100 such failures; here
 //!   the candidate is then drawn uniformly from the whole search box (up to 100 times), and if
-//!   even that finds only stored points the search reports [`Status::Converged`] (ZOOpt's
+//!   even that finds only stored points the search reports [`Status::Converged`](super::Status::Converged) (ZOOpt's
 //!   "sample space has been fully explored"). It takes a search box a few f32 steps wide.
 //! * **LM** measures the margin from the best sample seen (the positive set's best), as the
 //!   paper says; ZOOpt measures it from the best *negative*.
