@@ -221,6 +221,7 @@ enum SlotState {
 /// Two-slot checkpoints of a [`Persistent`] value on NOR flash (see the
 /// [module docs](self)).
 #[derive(Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CheckpointStore<F> {
     flash: F,
     slots: [Range<u32>; 2],

@@ -644,4 +644,76 @@ mod tests {
             }
         }
     }
+
+    /// Forges `tries` records of `s` after 15 evaluations, each with one payload byte
+    /// replaced at random and the checksum made valid again; whatever loads then runs 20
+    /// asks and tells. Returns how many loaded and how many of those panicked.
+    fn forge<const N: usize, O: Optimizer<N> + Persistent>(mut s: O, tries: u32) -> (u32, u32) {
+        let mut r = rng(1);
+        run(&mut s, &mut r, 15);
+        let record = bytes(&s);
+        let (mut loaded, mut panics) = (0, 0);
+        for i in 0..tries {
+            let mut bad = record.clone();
+            let at = 6 + (r.next_u32() as usize) % (bad.len() - 10);
+            bad[at] = r.next_u32() as u8;
+            let end = bad.len() - 4;
+            let checksum = CHECKSUM.checksum(&bad[..end]).to_le_bytes();
+            bad[end..].copy_from_slice(&checksum);
+            if let Ok(mut o) = load::<O>(&bad) {
+                loaded += 1;
+                let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    let mut r = rng(u64::from(i));
+                    for _ in 0..20 {
+                        if let Ok(theta) = o.ask(&mut r) {
+                            // A forged state may hand out a non-finite θ: an error, not a panic.
+                            let _ = o.tell(cost(&theta, &mut r));
+                        }
+                    }
+                }));
+                panics += u32::from(ran.is_err());
+            }
+        }
+        (loaded, panics)
+    }
+
+    /// A sample of forged records (one byte changed, checksum made valid) for every
+    /// optimizer: those that decode continue without a panic for 20 asks and tells. A
+    /// sample, not a proof: decoded states are not validated against the constructors'
+    /// invariants.
+    #[test]
+    fn forged_records_do_not_panic_in_a_sample() {
+        let (b, z) = (bounds::<3>(), Vector::<3>::zeros());
+        let results = [
+            forge(Sracos::<3>::try_new(b, SracosConfig::DEFAULT).unwrap(), 200),
+            forge(
+                Racos::<3, 2, 5>::try_new(b, RacosConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                CoordinateSearch::try_new(b, z, CoordinateConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                ControlledRandomSearch::<3, 10>::try_new(b, CrsConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                DiagonalCem::<3, 6, 3>::try_new(b, z, CemConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                Cmaes::<3, 6>::try_new(b, z, CmaesConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                Rockstar::<3, 10>::try_new(b, z, RockstarConfig::DEFAULT).unwrap(),
+                200,
+            ),
+        ];
+        for (loaded, panics) in results {
+            assert!(loaded > 100);
+            assert_eq!(panics, 0);
+        }
+    }
 }
