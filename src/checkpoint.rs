@@ -28,15 +28,14 @@
 //! `sequential-storage` is async; the flash is `embedded-storage-async`'s [`NorFlash`], and
 //! the store drives it with `embassy_futures::block_on`: with a blocking flash driver every
 //! future completes at its first poll. A driver that implements only the blocking
-//! `embedded_storage::nor_flash::NorFlash` becomes an async one through
-//! `embassy_embedded_hal::adapter::BlockingAsync`, as `sequential-storage`'s documentation
-//! recommends.
+//! `embedded_storage::nor_flash::NorFlash` (most HALs' internal flash) becomes an async one
+//! through `embassy_embedded_hal::adapter::BlockingAsync`; the power-cut tests use it.
 //!
 //! Each slot must be at least two pages (`sequential-storage`'s minimum) and hold the live
 //! chunks of one record plus a free page for its garbage collection. The caller provides two
 //! buffers: `record`, at least as long as the record, and `item`, the largest chunk item plus
-//! the key and header (it sets the chunk size: `item.len()` − [`ITEM_OVERHEAD`]), which must
-//! fit a page.
+//! the key and header (it sets the chunk size: `item.len()`, rounded down to the write size,
+//! less [`ITEM_OVERHEAD`]), which must fit a page with `sequential-storage`'s headers.
 
 use core::fmt;
 use core::ops::Range;
@@ -47,10 +46,10 @@ use sequential_storage::map::{MapConfig, MapStorage, SerializationError, Value};
 
 use crate::record::{self, Persistent, RecordError};
 
-/// Bytes of the `item` buffer that are not record bytes: the key (2), the generation (4),
-/// and up to 10 for the flash's word alignment (`sequential-storage` rounds an item up to
-/// it), so a chunk holds `item.len()` − 16 record bytes.
-pub const ITEM_OVERHEAD: usize = 16;
+/// Bytes of a chunk item that are not record bytes: the key (2) and the generation (4).
+/// A chunk holds the `item` buffer's length rounded down to the flash's write size, less
+/// these (`sequential-storage` rounds an item up to the write size in that buffer).
+pub const ITEM_OVERHEAD: usize = 6;
 
 const COMMIT_KEY: u16 = 0;
 const COMMIT_LEN: usize = 10;
@@ -384,8 +383,8 @@ impl<F: NorFlash> CheckpointStore<F> {
         self.next_generation = generation.saturating_add(1);
 
         let len = record::save(value, record)?.len();
-        let room = item
-            .len()
+        let usable = item.len() - item.len() % F::WRITE_SIZE.max(1);
+        let room = usable
             .checked_sub(ITEM_OVERHEAD)
             .filter(|&room| room > 0)
             .ok_or(CheckpointError::BufferTooSmall)?;
