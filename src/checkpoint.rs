@@ -304,9 +304,12 @@ impl<F: NorFlash> CheckpointStore<F> {
     }
 
     /// Boot: the value of the newest intact checkpoint, `None` when there is none (erased
-    /// flash, or no save ever completed). A slot spoilt by a power cut or a corrupted byte
-    /// is passed over for the other one. An intact checkpoint of another type, sizes or
-    /// format version is an error ([`CheckpointError::Record`]), not skipped.
+    /// flash, no save ever completed, or both slots corrupted beyond repair). A slot spoilt
+    /// by a power cut or a corrupted byte is passed over for the other one. An intact
+    /// checkpoint of another type, sizes or format version is an error
+    /// ([`CheckpointError::Record`]), not skipped: to start afresh, just save; the refused
+    /// checkpoint is kept until that save has replaced it. A flash driver error is
+    /// [`CheckpointError::Flash`], and nothing is assumed about the slots.
     pub fn load<T: Persistent>(
         &mut self,
         record: &mut [u8],
@@ -343,13 +346,21 @@ impl<F: NorFlash> CheckpointStore<F> {
                     e @ (CheckpointError::Record(RecordError::Shape)
                     | CheckpointError::Record(RecordError::Version { .. })
                     | CheckpointError::BufferTooSmall),
-                ) => refusal = refusal.or(Some(e)),
+                ) => refusal = refusal.or(Some((e, slot, commit.generation))),
+                // The driver failed: falling back could load an older state and let the
+                // next save overwrite the newer one.
+                Err(CheckpointError::Flash) => return Err(CheckpointError::Flash),
                 // Torn or corrupted: the other slot.
                 Err(_) => {}
             }
         }
-        if let Some(e) = refusal {
+        if let Some((e, slot, generation)) = refusal {
+            // Kept as the newest until a save replaces it (into the other slot).
+            self.newest = Some(Some((slot, generation)));
             return Err(e);
+        }
+        if states.contains(&SlotState::Unreadable(CheckpointError::Flash)) {
+            return Err(CheckpointError::Flash);
         }
         self.newest = Some(None);
         Ok(None)

@@ -422,6 +422,7 @@ fn cmaes_survives_every_power_cut() {
 /// corrupted byte anywhere in the flash (each byte in turn, every bit flipped) never panics
 /// and boot loads the newest checkpoint, or the one before it when the byte spoilt the
 /// newest; never anything else. A save after such a boot succeeds and is the one found next.
+/// A checkpoint of other sizes is refused by name, and saving afresh over it works.
 #[test]
 fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
     let o = Cmaes::<2, 4>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
@@ -477,6 +478,20 @@ fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
             .unwrap_err(),
         CheckpointError::Record(RecordError::Shape)
     );
+    // Starting afresh with the other sizes: the save goes through and is found next.
+    let other =
+        learner(Cmaes::<2, 5>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap());
+    let mut s = store(&mut flash);
+    assert!(
+        s.load::<Learner<Learning<Cmaes<2, 5>>>>(&mut rec, &mut item)
+            .is_err()
+    );
+    s.save(&other, &mut rec, &mut item).unwrap();
+    let found = store(&mut flash)
+        .load::<Learner<Learning<Cmaes<2, 5>>>>(&mut rec, &mut item)
+        .unwrap()
+        .unwrap();
+    assert_eq!(bytes(&found), bytes(&other));
 }
 
 /// A NOR flash in RAM with 4 KiB pages (a common internal-flash page) that counts the bytes
