@@ -30,7 +30,7 @@ const SLOTS: [core::ops::Range<u32>; 2] = [
     0..(SLOT_PAGES * PAGE) as u32,
     (SLOT_PAGES * PAGE) as u32..FLASH as u32,
 ];
-const ITEM: usize = 256;
+const ITEM: usize = 128;
 const RECORD: usize = 2048;
 
 /// Why the test flash refused an operation.
@@ -377,8 +377,9 @@ fn bounds() -> Bounds<2> {
 const EPISODES: usize = 12;
 
 fn report(name: &str, (cuts, after, erases, record): (u64, u64, u64, usize)) {
+    let saves = after;
     println!(
-        "{name}: {cuts} power cuts in {EPISODES} saves ({erases} page erases), {after} booted \
+        "{name}: {cuts} power cuts in {saves} saves ({erases} page erases), {after} booted \
          into the new checkpoint, {} into the one before; largest record {record} bytes",
         cuts - after
     );
@@ -416,6 +417,19 @@ fn diagonal_cem_survives_every_power_cut() {
 fn cmaes_survives_every_power_cut() {
     let o = Cmaes::<2, 4>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
     report("CMA-ES", cut_everywhere(o, EPISODES));
+}
+
+/// As above, for ROCK* (a memory of 10 rollouts: the run crosses its first update), over 6
+/// episodes: its larger record makes every save cost more words.
+#[test]
+fn rockstar_survives_every_power_cut() {
+    use ctrl_adapt::optimizer::{Rockstar, RockstarConfig};
+    let config = RockstarConfig {
+        initial_samples: 4,
+        ..RockstarConfig::DEFAULT
+    };
+    let o = Rockstar::<2, 10>::try_new(bounds(), Vector::zeros(), config).unwrap();
+    report("ROCK*", cut_everywhere(o, 6));
 }
 
 /// Checks: boot on erased flash finds nothing and learning starts fresh; after a run, a
