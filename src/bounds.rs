@@ -24,6 +24,7 @@ use crate::vector::Vector;
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Bounds<const N: usize> {
     lower: Vector<N>,
     upper: Vector<N>,

@@ -51,6 +51,7 @@ pub trait Shaper {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct SurveyCost {
     radius: f32,
     min_distance: f32,
@@ -126,6 +127,7 @@ impl Shaper for SurveyCost {
 /// A quadratic tracking cost ∫ Σ_i q_i e_i² dt over the episode.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct QuadraticCost<const K: usize> {
     weights: Vector<K>,
     total: f32,
@@ -198,6 +200,7 @@ pub struct HopSample {
 /// Parameters of [`ApexHeightCost`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ApexConfig {
     /// The apex height to hold (m; the paper: 0.6 m).
     pub set_height: f32,
@@ -266,6 +269,7 @@ impl Default for ApexConfig {
 /// about 6e-4 and 1 cm about 2.5e-5: weights of the other terms should be set against that.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ApexHeightCost {
     config: ApexConfig,
     previous_velocity: f32,

@@ -6,11 +6,15 @@
 #![warn(missing_docs)]
 
 pub mod bounds;
+#[cfg(feature = "checkpoint")]
+pub mod checkpoint;
 pub mod controller;
 pub mod cost;
 pub mod error;
 pub mod optimizer;
 pub mod random;
+#[cfg(feature = "serde")]
+pub mod record;
 pub mod vector;
 
 #[cfg(test)]
@@ -84,6 +88,15 @@ const _: () = {
     assert_format::<Racos<3, 1, 3>>();
     assert_format::<RockstarConfig>();
     assert_format::<Rockstar<3, 8>>();
+};
+
+#[cfg(all(feature = "defmt", feature = "serde"))]
+const _: () = {
+    const fn assert_format<T: defmt::Format>() {}
+    assert_format::<record::RecordError>();
+    assert_format::<record::Shape>();
+    #[cfg(feature = "checkpoint")]
+    assert_format::<checkpoint::CheckpointError>();
 };
 
 /// The guide's Rust snippets, compiled and run as doc tests so the guide cannot drift from

@@ -66,6 +66,7 @@ pub(crate) use ledger::{Ledger, ledger_accessors};
 /// Where an optimizer is in its run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Status {
     /// It will propose more candidates.
     Running,
@@ -78,6 +79,7 @@ pub enum Status {
 /// The best parameters seen so far and their cost.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Best<const N: usize> {
     /// The parameter vector.
     pub theta: Vector<N>,

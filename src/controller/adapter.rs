@@ -35,6 +35,7 @@ use crate::vector::Vector;
 /// What the adapter does with episodes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Mode {
     /// Explore: each episode runs the optimizer's next candidate and tells its cost.
     Learn,
@@ -47,6 +48,7 @@ pub enum Mode {
 /// Parameters of an [`Adapter`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct AdapterConfig {
     /// Control period in seconds (> 0): the time step of the shaper and of `time` for the
     /// controller.
@@ -138,6 +140,7 @@ impl core::error::Error for AdapterError {
 /// The episode in progress.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Episode<const P: usize> {
     theta: Vector<P>,
     mode: Mode,
@@ -172,6 +175,7 @@ struct Episode<const P: usize> {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct EpisodeRunner<C, Sh, const P: usize, const S: usize, const A: usize> {
     controller: C,
     shaper: Sh,
@@ -301,6 +305,7 @@ where
 /// [`Shaper`]) scores episodes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Adapter<O, C, Sh, const P: usize, const S: usize, const A: usize> {
     optimizer: O,
     runner: EpisodeRunner<C, Sh, P, S, A>,

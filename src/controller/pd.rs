@@ -24,6 +24,7 @@ use crate::vector::Vector;
 /// Which signal [`Pd::update`] differentiates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Derivative {
     /// ė from successive errors: follows setpoint changes (and kicks on steps).
     OnError,
@@ -47,6 +48,7 @@ pub enum Derivative {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Pd<const A: usize> {
     kp: Vector<A>,
     kd: Vector<A>,

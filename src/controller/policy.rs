@@ -36,6 +36,7 @@ pub trait FeatureMap<const S: usize, const F: usize> {
 /// velocity, 6 features). `scale` normalises units so one step size suits every weight.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct StateFeatures<const S: usize> {
     scale: Vector<S>,
 }
@@ -70,6 +71,7 @@ impl<const S: usize> FeatureMap<S, S> for StateFeatures<S> {
 /// The period is learned: T = clamp(T₀ + θ_last, T_min, T_max) ([`FeatureMap::LEARNED`] = 1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PeriodicRbf<const K: usize> {
     period: f32,
     min_period: f32,
@@ -162,6 +164,7 @@ impl<const S: usize, const K: usize> FeatureMap<S, K> for PeriodicRbf<K> {
 /// [module docs](self)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct LinearPolicy<const C: usize, const F: usize, M> {
     map: M,
     envelope: Vector<C>,
@@ -258,6 +261,7 @@ impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CorrectedPd<const A: usize, const S: usize, const F: usize, const P: usize, M> {
     pd: Pd<A>,
     policy: LinearPolicy<A, F, M>,
@@ -320,6 +324,7 @@ where
 /// P = 3K + 1 is checked at compile time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct PeriodicPd<const K: usize, const P: usize> {
     pd: Pd<2>,
     knee_weights: Vector<K>,

@@ -111,6 +111,7 @@ macro_rules! forward_optimizer {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum AnyOptimizer<const N: usize, const L: usize = 12, const E: usize = 6, const M: usize = 100>
 {
     /// [`CoordinateSearch`]: the local phase.

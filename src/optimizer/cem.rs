@@ -105,6 +105,7 @@ use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, keep_ranked, norma
 /// Every scheme gives weights that are non-negative, sum to 1 and do not increase with cost.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Weighting {
     /// Cross-entropy method, (12): P_k = 1/K_e on the K_e best samples, 0 on the others.
     Cem,
@@ -164,6 +165,7 @@ impl Weighting {
 /// the optimizer's constructors). Variances are in squared parameter units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CemConfig {
     /// How costs become weights.
     pub weighting: Weighting,
@@ -261,6 +263,7 @@ impl Default for CemConfig {
 /// A told sample kept for the update.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Sample<const N: usize> {
     cost: f32,
     theta: Vector<N>,
@@ -300,6 +303,7 @@ struct Sample<const N: usize> {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct DiagonalCem<const N: usize, const K: usize, const E: usize = K> {
     bounds: Bounds<N>,
     config: CemConfig,

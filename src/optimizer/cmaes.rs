@@ -182,6 +182,7 @@ where
 /// [`Cmaes::try_new`]). Lengths are in normalised units: 1 is the box's half-width.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CmaesConfig {
     /// σ₀ > 0: the initial step size relative to the box's half-width, ≤ `max_sigma`.
     pub initial_sigma: f32,
@@ -255,10 +256,13 @@ impl Default for CmaesConfig {
 /// The strategy parameters of the tutorial's table 1 for n = N, λ = L.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Constants<const L: usize> {
     /// w_1..w_μ (normalised), 0 beyond μ.
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     weights: [f32; L],
     /// The active update's weights w_{μ+1}..w_λ (≤ 0), 0 up to μ.
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     negative: [f32; L],
     mu: usize,
     mu_eff: f32,
@@ -334,6 +338,7 @@ impl<const L: usize> Constants<L> {
 /// draw z (the step is y = (x − m)/σ = B D z).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Sample<const N: usize> {
     rank_cost: f32,
     z: Vector<N>,
@@ -369,6 +374,7 @@ struct Sample<const N: usize> {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Cmaes<const N: usize, const L: usize> {
     bounds: Bounds<N>,
     config: CmaesConfig,

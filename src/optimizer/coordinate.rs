@@ -60,6 +60,7 @@ use super::{Bounds, Error, Ledger, Optimizer, Status, Vector};
 /// (and by the optimizer's constructors).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CoordinateConfig {
     /// α̃⁰: the first tentative step in every direction (> 0, finite), in parameter units.
     pub initial_step: f32,
@@ -120,6 +121,7 @@ impl Default for CoordinateConfig {
 /// Where the state machine stands; the next candidate follows from it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 enum Phase {
     /// θ⁰ itself has to be evaluated first (J(y_1) is needed by every test).
     Start,
@@ -154,6 +156,7 @@ enum Phase {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CoordinateSearch<const N: usize> {
     bounds: Bounds<N>,
     config: CoordinateConfig,

@@ -33,6 +33,7 @@ use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, random_index};
 /// Parameters of [`ControlledRandomSearch`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct CrsConfig {
     /// ε ≥ 0: stop when J_max − J_min ≤ ε over the set.
     pub tolerance: f32,
@@ -90,16 +91,20 @@ impl Default for CrsConfig {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ControlledRandomSearch<const N: usize, const M: usize> {
     bounds: Bounds<N>,
     config: CrsConfig,
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     points: [Vector<N>; M],
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     costs: [f32; M],
     /// Points of S evaluated so far (Step 0 ends at M).
     filled: usize,
     /// J_max⁰ − J_min⁰.
     initial_spread: f32,
     /// A permutation of 0..M, partially reshuffled for each subset draw.
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     order: [u16; M],
     ledger: Ledger<N>,
 }

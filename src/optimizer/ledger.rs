@@ -38,6 +38,7 @@ pub(crate) use ledger_accessors;
 /// "rejected call changes nothing" rule hold the same way in every optimizer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct Ledger<const N: usize> {
     pending: Option<Vector<N>>,
     evaluations: u32,

@@ -217,6 +217,7 @@ pub fn chi_squared_95(n: usize) -> f32 {
 /// `None` in an `Option` field means the authors' default for n parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RockstarConfig {
     /// σ₀ > 0: the initial exploration standard deviation relative to the box's
     /// half-width, ≤ `max_sigma` (the paper finds the exploration covariance "a very
@@ -351,6 +352,7 @@ impl Default for RockstarConfig {
 /// The strategy constants for n parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Constants {
     /// ϑ = −P(0.95, n)/(2 ln λ): Σ_ε = ϑ Σ.
     kernel: f32,
@@ -459,6 +461,7 @@ struct Sums<const N: usize> {
 /// ```
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Rockstar<const N: usize, const M: usize> {
     bounds: Bounds<N>,
     config: RockstarConfig,
@@ -478,11 +481,14 @@ pub struct Rockstar<const N: usize, const M: usize> {
     path: Vector<N>,
     /// The remembered rollouts, whitened (A⁻¹ x_i), in a ring: the oldest at `head` once
     /// the memory is full.
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     samples: [Vector<N>; M],
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     costs: [f32; M],
     len: usize,
     head: usize,
     /// Indices of the near set of the last update.
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     near: [u16; M],
     near_len: usize,
     /// The pending candidate, normalised and projected, and A⁻¹ of it.

@@ -47,7 +47,7 @@
 //! * **Distinct-candidate fallback.** After 100 duplicate draws from the box ZOOpt starts a
 //!   new iteration (new coin, new classifier) and ends the run after 100 such failures; here
 //!   the candidate is then drawn uniformly from the whole search box (up to 100 times), and if
-//!   even that finds only stored points the search reports [`Status::Converged`] (ZOOpt's
+//!   even that finds only stored points the search reports [`Status::Converged`](super::Status::Converged) (ZOOpt's
 //!   "sample space has been fully explored"). It takes a search box a few f32 steps wide.
 //! * **LM** measures the margin from the best sample seen (the positive set's best), as the
 //!   paper says; ZOOpt measures it from the best *negative*.
@@ -138,6 +138,7 @@ fn below<R: RngCore + ?Sized>(rng: &mut R, n: usize) -> usize {
 /// (the paper's `strategy_N`; the positive set always drops its worst).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Replacement {
     /// WR: replace the worst negative if the newcomer is better, else drop the newcomer
     /// (the paper's and ZOOpt's default).
@@ -152,6 +153,7 @@ pub enum Replacement {
 /// [module docs](self).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Suppression {
     /// Consecutive samples that do not enter the positive set before the positives are
     /// re-evaluated (≥ 1).
@@ -219,6 +221,7 @@ fn resolve_uncertain_bits(configured: Option<u8>, n: usize) -> Result<usize, Err
 /// Parameters of [`Sracos`]; checked by [`SracosConfig::validate`] and the constructor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct SracosConfig {
     /// 1 − λ ∈ [0, 1]: the probability of a uniform candidate from the whole box.
     pub exploration_rate: f32,
@@ -267,6 +270,7 @@ impl Default for SracosConfig {
 /// Parameters of [`Racos`]; checked by [`RacosConfig::validate`] and the constructor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RacosConfig {
     /// 1 − λ ∈ [0, 1]: the probability of a uniform candidate from the whole box.
     pub exploration_rate: f32,
@@ -303,12 +307,16 @@ impl Default for RacosConfig {
 /// The positive and negative sets, filled by the r initial samples and then of fixed size.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Archive<const N: usize, const K: usize, const M: usize> {
     /// Sorted by cost, ties in arrival order; the first `len.min(K)` are filled.
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     positive: [Best<N>; K],
     /// Whether value suppression has re-evaluated `positive[i]` (moves with it).
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     resampled: [bool; K],
     /// Unordered; the first `len − K` are filled (once `len > K`).
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     negative: [Best<N>; M],
     /// Samples stored, ≤ K + M.
     len: usize,
@@ -474,6 +482,7 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
 /// What SRACOS is doing.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 enum Phase<const N: usize> {
     /// Sampling new candidates (the r initial ones first).
     Search,
@@ -512,6 +521,7 @@ enum Phase<const N: usize> {
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Sracos<const N: usize, const K: usize = 2, const M: usize = 10> {
     bounds: Bounds<N>,
     config: SracosConfig,
@@ -696,12 +706,14 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
 /// so the state is (K + 2M) samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Racos<const N: usize, const K: usize = 2, const M: usize = 10> {
     bounds: Bounds<N>,
     config: RacosConfig,
     uncertain_bits: usize,
     archive: Archive<N, K, M>,
     /// This batch's evaluated samples, the first `batch_len`.
+    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     batch: [Best<N>; M],
     batch_len: usize,
     ledger: Ledger<N>,

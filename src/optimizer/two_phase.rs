@@ -29,6 +29,7 @@ use super::{Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, 
 /// Which phase a [`TwoPhase`] is in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Phase {
     /// The global search is running.
     Global,
@@ -40,6 +41,7 @@ pub enum Phase {
 /// [`CoordinateSearch`] from its best θ.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct TwoPhase<G, const N: usize> {
     global: G,
     global_budget: u32,

@@ -1,0 +1,421 @@
+//! A power-fail-safe checkpoint store on NOR flash, built on `sequential-storage`'s map.
+//!
+//! A checkpoint is one [record] (an adapter, an optimizer, with the caller's RNG
+//! as a pair: anything [`Persistent`]). A `sequential-storage` item must fit in one flash
+//! page, while the record of a [`Cmaes`](crate::Cmaes) or a [`Rockstar`](crate::Rockstar)
+//! may not, so a record is written as numbered chunks plus a commit item, into one of two
+//! slots (two separate flash ranges, each its own `sequential-storage` map):
+//!
+//! ```text
+//! slot (a map keyed by u16):  key 1..=n: (generation, record bytes of chunk i)
+//!                             key 0:     commit (generation, n, record length), written last
+//! ```
+//!
+//! A save goes to the slot that does not hold the newest checkpoint, under a generation one
+//! above any seen, and writes the commit last. A slot is intact when its commit is there and
+//! every chunk it names carries the commit's generation, and the record they spell passes its
+//! checks (CRC-32, format version, shape). A power cut during a save leaves that slot's
+//! commit as it was (`sequential-storage` writes each item power-fail safely): its new chunks
+//! carry a generation that no commit names, so the slot reads as the older checkpoint it held
+//! or as nothing, and the other slot still holds the checkpoint before the save. Boot
+//! ([`CheckpointStore::load`]) takes the intact slot of the higher generation, falls back to
+//! the other one when a corrupted byte spoils it (`sequential-storage` checks each item's
+//! CRC and the record its own), and finds nothing on erased flash.
+//!
+//! The slots being separate ranges, a corruption that `sequential-storage` must repair (by
+//! erasing pages of a map) touches one slot only.
+//!
+//! `sequential-storage` is async; the flash is `embedded-storage-async`'s [`NorFlash`], and
+//! the store drives it with `embassy_futures::block_on`: with a blocking flash driver every
+//! future completes at its first poll. A driver that implements only the blocking
+//! `embedded_storage::nor_flash::NorFlash` (most HALs' internal flash) becomes an async one
+//! through `embassy_embedded_hal::adapter::BlockingAsync`; the power-cut tests use it.
+//!
+//! Each slot must be at least two pages (`sequential-storage`'s minimum) and hold the live
+//! chunks of one record plus a free page for its garbage collection. The caller provides two
+//! buffers: `record`, at least as long as the record, and `item`, the largest chunk item plus
+//! the key and header (it sets the chunk size: `item.len()`, rounded down to the write size,
+//! less [`ITEM_OVERHEAD`]), which must fit a page with `sequential-storage`'s headers.
+
+use core::fmt;
+use core::ops::Range;
+
+use embedded_storage_async::nor_flash::NorFlash;
+use sequential_storage::cache::Cache;
+use sequential_storage::map::{MapConfig, MapStorage, SerializationError, Value};
+
+use crate::record::{self, Persistent, RecordError};
+
+/// Bytes of a chunk item that are not record bytes: the key (2) and the generation (4).
+/// A chunk holds the `item` buffer's length rounded down to the flash's write size, less
+/// these (`sequential-storage` rounds an item up to the write size in that buffer).
+pub const ITEM_OVERHEAD: usize = 6;
+
+const COMMIT_KEY: u16 = 0;
+const COMMIT_LEN: usize = 10;
+
+/// Why the store could not save or load.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum CheckpointError {
+    /// A slot's range is not page-aligned, shorter than two pages, or the slots overlap.
+    InvalidRange,
+    /// The `record` or `item` buffer is too small (for the record, or for one chunk).
+    BufferTooSmall,
+    /// The record needs more chunks than a slot can name (65 535), or a chunk does not fit a
+    /// page, or the slot cannot hold the record: use a larger slot or smaller items.
+    SlotTooSmall,
+    /// The flash driver reported an error (a power cut during a save shows as this).
+    Flash,
+    /// `sequential-storage` found corruption in a slot that it could not repair.
+    Corrupted,
+    /// The newest checkpoint is intact but not of this type, sizes or format version.
+    Record(RecordError),
+}
+
+impl fmt::Display for CheckpointError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidRange => f.write_str(
+                "a checkpoint slot is not page-aligned, shorter than two pages, or overlaps the other",
+            ),
+            Self::BufferTooSmall => f.write_str("a checkpoint buffer is too small"),
+            Self::SlotTooSmall => f.write_str("the checkpoint does not fit its slot"),
+            Self::Flash => f.write_str("the flash reported an error"),
+            Self::Corrupted => f.write_str("the checkpoint flash is corrupted beyond repair"),
+            Self::Record(e) => write!(f, "checkpoint record: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for CheckpointError {}
+
+impl From<RecordError> for CheckpointError {
+    fn from(e: RecordError) -> Self {
+        match e {
+            RecordError::BufferTooSmall => Self::BufferTooSmall,
+            e => Self::Record(e),
+        }
+    }
+}
+
+fn storage_error<E>(e: sequential_storage::Error<E>) -> CheckpointError {
+    use sequential_storage::Error as S;
+    match e {
+        S::Storage { .. } => CheckpointError::Flash,
+        S::FullStorage | S::ItemTooBig => CheckpointError::SlotTooSmall,
+        S::BufferTooSmall(_) | S::BufferTooBig => CheckpointError::BufferTooSmall,
+        _ => CheckpointError::Corrupted,
+    }
+}
+
+/// One chunk item: the generation, then its part of the record.
+struct Chunk<'a> {
+    generation: u32,
+    bytes: &'a [u8],
+}
+
+impl<'a> Value<'a> for Chunk<'a> {
+    fn serialize_into(&self, buffer: &mut [u8]) -> Result<usize, SerializationError> {
+        let len = 4 + self.bytes.len();
+        let out = buffer
+            .get_mut(..len)
+            .ok_or(SerializationError::BufferTooSmall)?;
+        let (generation, bytes) = out.split_at_mut(4);
+        generation.copy_from_slice(&self.generation.to_le_bytes());
+        bytes.copy_from_slice(self.bytes);
+        Ok(len)
+    }
+
+    fn deserialize_from(buffer: &'a [u8]) -> Result<(Self, usize), SerializationError> {
+        let (generation, bytes) = buffer
+            .split_first_chunk::<4>()
+            .ok_or(SerializationError::InvalidFormat)?;
+        Ok((
+            Self {
+                generation: u32::from_le_bytes(*generation),
+                bytes,
+            },
+            buffer.len(),
+        ))
+    }
+}
+
+/// The commit item: the generation, the number of chunks and the record's length.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Commit {
+    generation: u32,
+    chunks: u16,
+    len: u32,
+}
+
+impl<'a> Value<'a> for Commit {
+    fn serialize_into(&self, buffer: &mut [u8]) -> Result<usize, SerializationError> {
+        let out = buffer
+            .get_mut(..COMMIT_LEN)
+            .ok_or(SerializationError::BufferTooSmall)?;
+        out[..4].copy_from_slice(&self.generation.to_le_bytes());
+        out[4..6].copy_from_slice(&self.chunks.to_le_bytes());
+        out[6..].copy_from_slice(&self.len.to_le_bytes());
+        Ok(COMMIT_LEN)
+    }
+
+    fn deserialize_from(buffer: &'a [u8]) -> Result<(Self, usize), SerializationError> {
+        let b: &[u8; COMMIT_LEN] = buffer
+            .try_into()
+            .map_err(|_| SerializationError::InvalidFormat)?;
+        Ok((
+            Self {
+                generation: u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+                chunks: u16::from_le_bytes([b[4], b[5]]),
+                len: u32::from_le_bytes([b[6], b[7], b[8], b[9]]),
+            },
+            COMMIT_LEN,
+        ))
+    }
+}
+
+/// The map of one slot (ranges checked in [`CheckpointStore::try_new`]).
+fn map<F: NorFlash>(
+    flash: &mut F,
+    range: Range<u32>,
+) -> Result<MapStorage<u16, &mut F, impl sequential_storage::cache::CacheImpl<u16>>, CheckpointError>
+{
+    let config = MapConfig::try_new(range).map_err(|_| CheckpointError::InvalidRange)?;
+    Ok(MapStorage::new(flash, config, Cache::new_uncached()))
+}
+
+/// Writes `record` into a slot's map as chunks of `room` bytes, then its commit.
+fn write_slot<F: NorFlash>(
+    map: &mut MapStorage<u16, &mut F, impl sequential_storage::cache::CacheImpl<u16>>,
+    commit: Commit,
+    record: &[u8],
+    room: usize,
+    item: &mut [u8],
+) -> Result<(), CheckpointError> {
+    for (index, bytes) in record.chunks(room).enumerate() {
+        // index < commit.chunks ≤ u16::MAX.
+        let key = index as u16 + 1;
+        let chunk = Chunk {
+            generation: commit.generation,
+            bytes,
+        };
+        embassy_futures::block_on(map.store_item(item, &key, &chunk)).map_err(storage_error)?;
+    }
+    embassy_futures::block_on(map.store_item(item, &COMMIT_KEY, &commit)).map_err(storage_error)
+}
+
+/// What a slot holds, as far as its commit tells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SlotState {
+    /// No commit (erased, or never completed a save).
+    Empty,
+    /// A commit of this generation (its chunks not yet checked).
+    Committed(Commit),
+    /// `sequential-storage` could not read the slot.
+    Unreadable(CheckpointError),
+}
+
+/// Two-slot checkpoints of a [`Persistent`] value on NOR flash (see the
+/// [module docs](self)).
+#[derive(Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CheckpointStore<F> {
+    flash: F,
+    slots: [Range<u32>; 2],
+    /// The slot and generation of the newest intact checkpoint, once known (`None` inside:
+    /// there is none).
+    newest: Option<Option<(usize, u32)>>,
+    /// The generation of the next save: one above any commit seen.
+    next_generation: u32,
+}
+
+impl<F: NorFlash> CheckpointStore<F> {
+    /// A store over the two flash ranges `slots` (page-aligned, at least two pages each,
+    /// disjoint). Reads nothing yet.
+    pub fn try_new(flash: F, slots: [Range<u32>; 2]) -> Result<Self, CheckpointError> {
+        for slot in &slots {
+            MapConfig::<F>::try_new(slot.clone()).map_err(|_| CheckpointError::InvalidRange)?;
+        }
+        if slots[0].start < slots[1].end && slots[1].start < slots[0].end {
+            return Err(CheckpointError::InvalidRange);
+        }
+        Ok(Self {
+            flash,
+            slots,
+            newest: None,
+            next_generation: 1,
+        })
+    }
+
+    /// The flash, back.
+    pub fn into_inner(self) -> F {
+        self.flash
+    }
+
+    /// The generation of the newest intact checkpoint found or written (`None` before
+    /// [`load`](Self::load) or [`save`](Self::save), or when there is none).
+    pub fn generation(&self) -> Option<u32> {
+        self.newest.flatten().map(|(_, generation)| generation)
+    }
+
+    fn commit(&mut self, slot: usize, item: &mut [u8]) -> SlotState {
+        let mut map = match map(&mut self.flash, self.slots[slot].clone()) {
+            Ok(map) => map,
+            Err(e) => return SlotState::Unreadable(e),
+        };
+        match embassy_futures::block_on(map.fetch_item::<Commit>(item, &COMMIT_KEY)) {
+            Ok(Some(commit)) => SlotState::Committed(commit),
+            Ok(None) => SlotState::Empty,
+            Err(e) => SlotState::Unreadable(storage_error(e)),
+        }
+    }
+
+    /// Reads the chunks `commit` names into `record`; the record's bytes, or why not.
+    fn gather<'r>(
+        &mut self,
+        slot: usize,
+        commit: Commit,
+        record: &'r mut [u8],
+        item: &mut [u8],
+    ) -> Result<&'r [u8], CheckpointError> {
+        let len = commit.len as usize;
+        let out = record
+            .get_mut(..len)
+            .ok_or(CheckpointError::BufferTooSmall)?;
+        let mut filled = 0;
+        let mut map = map(&mut self.flash, self.slots[slot].clone())?;
+        for key in 1..=commit.chunks {
+            let chunk = embassy_futures::block_on(map.fetch_item::<Chunk>(item, &key))
+                .map_err(storage_error)?
+                .ok_or(CheckpointError::Corrupted)?;
+            let end = filled + chunk.bytes.len();
+            if chunk.generation != commit.generation || end > len {
+                return Err(CheckpointError::Corrupted);
+            }
+            out[filled..end].copy_from_slice(chunk.bytes);
+            filled = end;
+        }
+        if filled != len {
+            return Err(CheckpointError::Corrupted);
+        }
+        Ok(out)
+    }
+
+    /// Boot: the value of the newest intact checkpoint, `None` when there is none (erased
+    /// flash, no save ever completed, or both slots corrupted beyond repair). A slot spoilt
+    /// by a power cut or a corrupted byte is passed over for the other one. An intact
+    /// checkpoint of another type, sizes or format version is an error
+    /// ([`CheckpointError::Record`]), not skipped: to start afresh, just save; the refused
+    /// checkpoint is kept until that save has replaced it. A flash driver error is
+    /// [`CheckpointError::Flash`], and nothing is assumed about the slots.
+    pub fn load<T: Persistent>(
+        &mut self,
+        record: &mut [u8],
+        item: &mut [u8],
+    ) -> Result<Option<T>, CheckpointError> {
+        let states = [self.commit(0, item), self.commit(1, item)];
+        let generation = |s: &SlotState| match s {
+            SlotState::Committed(c) => Some(c.generation),
+            _ => None,
+        };
+        let highest = states.iter().filter_map(generation).max().unwrap_or(0);
+        self.next_generation = highest.saturating_add(1);
+        // Newest first.
+        let order = if generation(&states[1]) > generation(&states[0]) {
+            [1, 0]
+        } else {
+            [0, 1]
+        };
+        let mut refusal = None;
+        for slot in order {
+            let SlotState::Committed(commit) = states[slot] else {
+                continue;
+            };
+            let outcome = self
+                .gather(slot, commit, record, item)
+                .and_then(|bytes| record::load::<T>(bytes).map_err(CheckpointError::from));
+            match outcome {
+                Ok(value) => {
+                    self.newest = Some(Some((slot, commit.generation)));
+                    return Ok(Some(value));
+                }
+                // Another type, sizes or version: say so rather than fall back silently.
+                Err(
+                    e @ (CheckpointError::Record(RecordError::Shape)
+                    | CheckpointError::Record(RecordError::Version { .. })
+                    | CheckpointError::BufferTooSmall),
+                ) => refusal = refusal.or(Some((e, slot, commit.generation))),
+                // The driver failed: falling back could load an older state and let the
+                // next save overwrite the newer one.
+                Err(CheckpointError::Flash) => return Err(CheckpointError::Flash),
+                // Torn or corrupted: the other slot.
+                Err(_) => {}
+            }
+        }
+        if let Some((e, slot, generation)) = refusal {
+            // Kept as the newest until a save replaces it (into the other slot).
+            self.newest = Some(Some((slot, generation)));
+            return Err(e);
+        }
+        if states.contains(&SlotState::Unreadable(CheckpointError::Flash)) {
+            return Err(CheckpointError::Flash);
+        }
+        self.newest = Some(None);
+        Ok(None)
+    }
+
+    /// Saves `value` as the newest checkpoint: into the slot that does not hold the newest
+    /// intact one, commit last. When this returns an error (a power cut, a full slot) the
+    /// previous checkpoint is still the one [`load`](Self::load) finds. Before the first
+    /// save after boot the store reads the slots (as `load` does) if `load` was not called.
+    pub fn save<T: Persistent>(
+        &mut self,
+        value: &T,
+        record: &mut [u8],
+        item: &mut [u8],
+    ) -> Result<(), CheckpointError> {
+        let newest = match self.newest {
+            Some(newest) => newest,
+            None => {
+                // Learns which slot is intact; the value itself is not needed.
+                let found = self.load::<T>(record, item);
+                match (found, self.newest) {
+                    (_, Some(newest)) => newest,
+                    (Err(e), _) => return Err(e),
+                    (Ok(_), None) => None,
+                }
+            }
+        };
+        let target = newest.map_or(0, |(slot, _)| 1 - slot);
+        let generation = self.next_generation;
+        // Never reuse a generation, even when this save fails half-way.
+        self.next_generation = generation.saturating_add(1);
+
+        let len = record::save(value, record)?.len();
+        let usable = item.len() - item.len() % F::WRITE_SIZE.max(1);
+        let room = usable
+            .checked_sub(ITEM_OVERHEAD)
+            .filter(|&room| room > 0)
+            .ok_or(CheckpointError::BufferTooSmall)?;
+        let chunks =
+            u16::try_from(len.div_ceil(room)).map_err(|_| CheckpointError::SlotTooSmall)?;
+        let commit = Commit {
+            generation,
+            chunks,
+            len: len as u32,
+        };
+        let mut map = map(&mut self.flash, self.slots[target].clone())?;
+        let mut written = write_slot(&mut map, commit, &record[..len], room, item);
+        if written == Err(CheckpointError::Corrupted) {
+            // The target slot does not hold the newest intact checkpoint, so erasing it loses
+            // nothing; `sequential-storage` could not repair it in place.
+            embassy_futures::block_on(map.erase_all()).map_err(storage_error)?;
+            written = write_slot(&mut map, commit, &record[..len], room, item);
+        }
+        written?;
+        self.newest = Some(Some((target, generation)));
+        Ok(())
+    }
+}

@@ -1,0 +1,719 @@
+//! Versioned records of the library's state, for learning that survives a power cut.
+//!
+//! Every optimizer, its configuration, the [`Adapter`](crate::controller::Adapter) with the
+//! controller and cost shaper it holds, [`Bounds`](crate::Bounds) and
+//! [`Vector`](crate::Vector) implement `serde`'s `Serialize`/`Deserialize` under the `serde`
+//! feature. This module wraps such a value into a self-describing record, encoded with
+//! `postcard`:
+//!
+//! ```text
+//! FORMAT_VERSION (varint) | shape (varint count, varint words) | postcard payload | CRC-32 (LE)
+//! ```
+//!
+//! The shape names the type and its const-generic sizes (dimension, population, archive
+//! capacities, ...), nested for the types it holds ([`Persistent::SHAPE`]). Loading a record
+//! into a value of another type, other sizes or another format version is an error
+//! ([`RecordError`]), never a wrong state; so is a record whose checksum (CRC-32/ISCSI over
+//! everything before it) does not match. A loaded value continues bit for bit where the saved
+//! one stopped, a pending candidate included: save after every `tell` (and, to resume an
+//! episode that a power cut interrupted, after every `ask` too), together with the caller's
+//! RNG when its state matters (a pair `(A, B)` of persistent values is persistent).
+//!
+//! The checksum guards against accidental corruption, not against a forged record: a decoded
+//! state is not checked again against the invariants its constructor enforces.
+//!
+//! ```
+//! use ctrl_adapt::record::{self, RecordError};
+//! use ctrl_adapt::{Bounds, CoordinateConfig, CoordinateSearch, Optimizer, Vector};
+//!
+//! let bounds = Bounds::<2>::uniform(-1.0, 1.0)?;
+//! let mut search = CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT)?;
+//! # let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
+//! # use rand_core::SeedableRng;
+//! let theta = search.ask(&mut rng)?;
+//! search.tell(theta.norm_squared())?;
+//!
+//! let mut buf = [0u8; 256];
+//! let bytes = record::save(&search, &mut buf)?;
+//! let restored: CoordinateSearch<2> = record::load(bytes)?;
+//! assert_eq!(restored, search);
+//! // Another dimension is refused.
+//! assert_eq!(record::load::<CoordinateSearch<3>>(bytes), Err(RecordError::Shape));
+//! # Ok::<(), Box<dyn core::error::Error>>(())
+//! ```
+
+use core::fmt;
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+/// The version of the record layout and of every type's encoding. It changes whenever a
+/// saved field is added, removed or reordered: a record of another version is refused.
+pub const FORMAT_VERSION: u16 = 1;
+
+/// The most words a [`Shape`] holds (a compile-time error beyond).
+pub const SHAPE_CAPACITY: usize = 32;
+
+/// Bytes of a record besides its shape and payload, at most: the version (a varint ≤ 3
+/// bytes), the shape's word count (1 byte) and the CRC-32 (4 bytes).
+pub const OVERHEAD: usize = 8;
+
+const CHECKSUM: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
+
+/// A type's name and const-generic sizes, as written into a record's header: a four-byte
+/// tag, the sizes, then the shapes of the types it holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Shape {
+    words: [u32; SHAPE_CAPACITY],
+    len: usize,
+}
+
+impl Shape {
+    /// A type tagged `tag` with the const-generic `sizes`.
+    pub const fn new(tag: [u8; 4], sizes: &[usize]) -> Self {
+        let mut shape = Self {
+            words: [0; SHAPE_CAPACITY],
+            len: 0,
+        };
+        shape = shape.push(u32::from_le_bytes(tag));
+        let mut i = 0;
+        while i < sizes.len() {
+            // Sizes beyond u32 cannot be allocated on the targets; saturate rather than wrap.
+            let size = if sizes[i] > u32::MAX as usize {
+                u32::MAX
+            } else {
+                sizes[i] as u32
+            };
+            shape = shape.push(size);
+            i += 1;
+        }
+        shape
+    }
+
+    /// This shape followed by `inner`, the shape of a type held inside.
+    pub const fn nest(self, inner: Shape) -> Self {
+        let mut shape = self;
+        let mut i = 0;
+        while i < inner.len {
+            shape = shape.push(inner.words[i]);
+            i += 1;
+        }
+        shape
+    }
+
+    const fn push(mut self, word: u32) -> Self {
+        assert!(
+            self.len < SHAPE_CAPACITY,
+            "shape longer than SHAPE_CAPACITY"
+        );
+        self.words[self.len] = word;
+        self.len += 1;
+        self
+    }
+
+    /// The words of the shape.
+    pub fn as_slice(&self) -> &[u32] {
+        self.words.get(..self.len).unwrap_or(&[])
+    }
+}
+
+/// A value that can be saved as a record and loaded back.
+pub trait Persistent: Serialize + DeserializeOwned {
+    /// The type's tag and sizes, nested for the types it holds.
+    const SHAPE: Shape;
+}
+
+/// Why a record could not be saved or loaded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RecordError {
+    /// The buffer is too small for the record.
+    BufferTooSmall,
+    /// The record's checksum does not match: it is truncated or corrupted.
+    Corrupt,
+    /// The record was written in another format version.
+    Version {
+        /// The version found in the record.
+        found: u16,
+    },
+    /// The record holds another type, or the same type with other sizes.
+    Shape,
+    /// The payload does not decode as the expected type (or leaves bytes over).
+    Encoding,
+}
+
+impl fmt::Display for RecordError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::BufferTooSmall => f.write_str("the buffer is too small for the record"),
+            Self::Corrupt => f.write_str("the record's checksum does not match"),
+            Self::Version { found } => write!(
+                f,
+                "the record has format version {found}, this build reads {FORMAT_VERSION}"
+            ),
+            Self::Shape => f.write_str("the record holds another type or other sizes"),
+            Self::Encoding => f.write_str("the record's payload does not decode"),
+        }
+    }
+}
+
+impl core::error::Error for RecordError {}
+
+fn encoding(e: postcard::Error) -> RecordError {
+    match e {
+        postcard::Error::SerializeBufferFull => RecordError::BufferTooSmall,
+        _ => RecordError::Encoding,
+    }
+}
+
+/// Writes `value` as a record into `buf` and returns the part of `buf` it fills.
+pub fn save<'b, T: Persistent>(value: &T, buf: &'b mut [u8]) -> Result<&'b mut [u8], RecordError> {
+    let body_room = buf
+        .len()
+        .checked_sub(4)
+        .ok_or(RecordError::BufferTooSmall)?;
+    let (body, _) = buf.split_at_mut(body_room);
+    let header = postcard::to_slice(&(FORMAT_VERSION, T::SHAPE.as_slice()), body)
+        .map_err(encoding)?
+        .len();
+    let rest = body.get_mut(header..).ok_or(RecordError::BufferTooSmall)?;
+    let payload = postcard::to_slice(value, rest).map_err(encoding)?.len();
+    let end = header + payload;
+    let checksum = CHECKSUM.checksum(buf.get(..end).ok_or(RecordError::BufferTooSmall)?);
+    let tail = buf
+        .get_mut(end..end + 4)
+        .ok_or(RecordError::BufferTooSmall)?;
+    tail.copy_from_slice(&checksum.to_le_bytes());
+    buf.get_mut(..end + 4).ok_or(RecordError::BufferTooSmall)
+}
+
+/// Reads a record written by [`save`] for the same type and sizes.
+pub fn load<T: Persistent>(bytes: &[u8]) -> Result<T, RecordError> {
+    let split = bytes.len().checked_sub(4).ok_or(RecordError::Corrupt)?;
+    let (body, tail) = bytes.split_at(split);
+    let stored = u32::from_le_bytes(tail.try_into().map_err(|_| RecordError::Corrupt)?);
+    if CHECKSUM.checksum(body) != stored {
+        return Err(RecordError::Corrupt);
+    }
+    let (version, rest) =
+        postcard::take_from_bytes::<u16>(body).map_err(|_| RecordError::Encoding)?;
+    if version != FORMAT_VERSION {
+        return Err(RecordError::Version { found: version });
+    }
+    let (shape, rest) = postcard::take_from_bytes::<heapless::Vec<u32, SHAPE_CAPACITY>>(rest)
+        .map_err(|_| RecordError::Shape)?;
+    if shape.as_slice() != T::SHAPE.as_slice() {
+        return Err(RecordError::Shape);
+    }
+    match postcard::take_from_bytes::<T>(rest) {
+        Ok((value, [])) => Ok(value),
+        _ => Err(RecordError::Encoding),
+    }
+}
+
+impl<A: Persistent, B: Persistent> Persistent for (A, B) {
+    const SHAPE: Shape = Shape::new(*b"PAIR", &[]).nest(A::SHAPE).nest(B::SHAPE);
+}
+
+/// `serde` for `[T; L]` of any length `L` (serde's own impls stop at 32): a tuple of `L`
+/// elements, so postcard writes no length. Used with `#[serde(with = "...")]`.
+pub(crate) mod array {
+    use core::fmt;
+    use core::marker::PhantomData;
+
+    use serde::de::{self, Deserialize, Deserializer, SeqAccess, Visitor};
+    use serde::ser::{Serialize, SerializeTuple, Serializer};
+
+    pub(crate) fn serialize<S: Serializer, T: Serialize, const L: usize>(
+        array: &[T; L],
+        serializer: S,
+    ) -> Result<S::Ok, S::Error> {
+        let mut tuple = serializer.serialize_tuple(L)?;
+        for element in array {
+            tuple.serialize_element(element)?;
+        }
+        tuple.end()
+    }
+
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>, T: Deserialize<'de>, const L: usize>(
+        deserializer: D,
+    ) -> Result<[T; L], D::Error> {
+        struct Elements<T, const L: usize>(PhantomData<T>);
+
+        impl<'de, T: Deserialize<'de>, const L: usize> Visitor<'de> for Elements<T, L> {
+            type Value = [T; L];
+
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "an array of {L} elements")
+            }
+
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<[T; L], A::Error> {
+                let mut elements = heapless::Vec::<T, L>::new();
+                for i in 0..L {
+                    let element = seq
+                        .next_element()?
+                        .ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                    // At most L pushes into a capacity of L: cannot fail.
+                    elements
+                        .push(element)
+                        .map_err(|_| de::Error::invalid_length(i, &self))?;
+                }
+                elements
+                    .into_array()
+                    .map_err(|e| de::Error::invalid_length(e.len(), &self))
+            }
+        }
+
+        deserializer.deserialize_tuple(L, Elements::<T, L>(PhantomData))
+    }
+}
+
+mod shapes {
+    use super::{Persistent, Shape};
+    use crate::controller::{
+        Adapter, CorrectedPd, EpisodeRunner, LinearPolicy, Pd, PeriodicPd, PeriodicRbf,
+        StateFeatures,
+    };
+    use crate::cost::{ApexHeightCost, QuadraticCost, SurveyCost};
+    use crate::optimizer::{
+        AnyOptimizer, Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Racos,
+        Rockstar, Sracos, TwoPhase,
+    };
+    use crate::{Bounds, Vector};
+
+    impl<const N: usize> Persistent for Vector<N> {
+        const SHAPE: Shape = Shape::new(*b"VECT", &[N]);
+    }
+    impl<const N: usize> Persistent for Bounds<N> {
+        const SHAPE: Shape = Shape::new(*b"BNDS", &[N]);
+    }
+    impl<const N: usize> Persistent for CoordinateSearch<N> {
+        const SHAPE: Shape = Shape::new(*b"CRDS", &[N]);
+    }
+    impl<const N: usize, const M: usize> Persistent for ControlledRandomSearch<N, M> {
+        const SHAPE: Shape = Shape::new(*b"CRS_", &[N, M]);
+    }
+    impl<G: Persistent, const N: usize> Persistent for TwoPhase<G, N> {
+        const SHAPE: Shape = Shape::new(*b"TWOP", &[N]).nest(G::SHAPE);
+    }
+    impl<const N: usize, const K: usize, const M: usize> Persistent for Sracos<N, K, M> {
+        const SHAPE: Shape = Shape::new(*b"SRAC", &[N, K, M]);
+    }
+    impl<const N: usize, const K: usize, const M: usize> Persistent for Racos<N, K, M> {
+        const SHAPE: Shape = Shape::new(*b"RACO", &[N, K, M]);
+    }
+    impl<const N: usize, const K: usize, const E: usize> Persistent for DiagonalCem<N, K, E> {
+        const SHAPE: Shape = Shape::new(*b"DCEM", &[N, K, E]);
+    }
+    impl<const N: usize, const L: usize> Persistent for Cmaes<N, L> {
+        const SHAPE: Shape = Shape::new(*b"CMAE", &[N, L]);
+    }
+    impl<const N: usize, const M: usize> Persistent for Rockstar<N, M> {
+        const SHAPE: Shape = Shape::new(*b"ROCK", &[N, M]);
+    }
+    impl<const N: usize, const L: usize, const E: usize, const M: usize> Persistent
+        for AnyOptimizer<N, L, E, M>
+    {
+        const SHAPE: Shape = Shape::new(*b"ANYO", &[N, L, E, M]);
+    }
+    impl<const A: usize> Persistent for Pd<A> {
+        const SHAPE: Shape = Shape::new(*b"PD__", &[A]);
+    }
+    impl<const S: usize> Persistent for StateFeatures<S> {
+        const SHAPE: Shape = Shape::new(*b"STFE", &[S]);
+    }
+    impl<const K: usize> Persistent for PeriodicRbf<K> {
+        const SHAPE: Shape = Shape::new(*b"PRBF", &[K]);
+    }
+    impl<const C: usize, const F: usize, M: Persistent> Persistent for LinearPolicy<C, F, M> {
+        const SHAPE: Shape = Shape::new(*b"LINP", &[C, F]).nest(M::SHAPE);
+    }
+    impl<const A: usize, const S: usize, const F: usize, const P: usize, M: Persistent> Persistent
+        for CorrectedPd<A, S, F, P, M>
+    {
+        const SHAPE: Shape = Shape::new(*b"CPD_", &[A, S, F, P]).nest(M::SHAPE);
+    }
+    impl<const K: usize, const P: usize> Persistent for PeriodicPd<K, P> {
+        const SHAPE: Shape = Shape::new(*b"PPD_", &[K, P]);
+    }
+    impl Persistent for SurveyCost {
+        const SHAPE: Shape = Shape::new(*b"SURV", &[]);
+    }
+    impl<const K: usize> Persistent for QuadraticCost<K> {
+        const SHAPE: Shape = Shape::new(*b"QUAD", &[K]);
+    }
+    impl Persistent for ApexHeightCost {
+        const SHAPE: Shape = Shape::new(*b"APEX", &[]);
+    }
+    impl<C: Persistent, Sh: Persistent, const P: usize, const S: usize, const A: usize> Persistent
+        for EpisodeRunner<C, Sh, P, S, A>
+    {
+        const SHAPE: Shape = Shape::new(*b"RUNR", &[P, S, A])
+            .nest(C::SHAPE)
+            .nest(Sh::SHAPE);
+    }
+    impl<O, C, Sh, const P: usize, const S: usize, const A: usize> Persistent
+        for Adapter<O, C, Sh, P, S, A>
+    where
+        O: Persistent,
+        C: Persistent,
+        Sh: Persistent,
+    {
+        const SHAPE: Shape = Shape::new(*b"ADPT", &[P, S, A])
+            .nest(O::SHAPE)
+            .nest(C::SHAPE)
+            .nest(Sh::SHAPE);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use rand_core::RngCore;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    use super::*;
+    use crate::optimizer::{
+        AnyOptimizer, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
+        CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Rockstar,
+        RockstarConfig, Sracos, SracosConfig, Suppression, TwoPhase,
+    };
+    use crate::random::unit_f32;
+    use crate::testing::rng;
+    use crate::{Bounds, Vector};
+
+    impl Persistent for Xoshiro128PlusPlus {
+        const SHAPE: Shape = Shape::new(*b"XO++", &[]);
+    }
+
+    /// A noisy shifted sphere; the noise comes from the caller's RNG, so a resumed run is
+    /// identical only if the RNG was saved with the optimizer.
+    fn cost<const N: usize>(theta: &Vector<N>, r: &mut Xoshiro128PlusPlus) -> f32 {
+        (theta - Vector::repeat(0.3)).norm_squared() + 0.01 * unit_f32(r)
+    }
+
+    type Event = (Vec<u32>, u32);
+
+    fn event<const N: usize>(theta: &Vector<N>, cost: f32) -> Event {
+        (theta.iter().map(|v| v.to_bits()).collect(), cost.to_bits())
+    }
+
+    /// Up to `total` ask/tell steps of `s` from `step` on; the events, and the state after.
+    fn run<const N: usize, O: Optimizer<N>>(
+        s: &mut O,
+        r: &mut Xoshiro128PlusPlus,
+        steps: usize,
+    ) -> Vec<Event> {
+        let mut events = Vec::new();
+        for _ in 0..steps {
+            let Ok(theta) = s.ask(r) else { break };
+            let c = cost(&theta, r);
+            s.tell(c).unwrap();
+            events.push(event(&theta, c));
+        }
+        events
+    }
+
+    fn bytes<T: Persistent>(value: &T) -> Vec<u8> {
+        let mut buf = std::vec![0u8; 1 << 16];
+        save(value, &mut buf).unwrap().to_vec()
+    }
+
+    /// Runs `fresh` for `total` steps uninterrupted, then again saved and loaded (with the
+    /// RNG) after each of `cuts` steps, once between a tell and the next ask and once with a
+    /// candidate pending; the resumed runs must match the uninterrupted one bit for bit:
+    /// every candidate, every cost, the best and the final state's record.
+    fn check_resumes_bit_identically<const N: usize, O>(fresh: O, total: usize, cuts: &[usize])
+    where
+        O: Optimizer<N> + Persistent + Clone + PartialEq + core::fmt::Debug,
+    {
+        let mut reference = fresh.clone();
+        let mut r = rng(11);
+        let expected = run(&mut reference, &mut r, total);
+        assert!(expected.len() > cuts.iter().copied().max().unwrap_or(0));
+        for &k in cuts {
+            for pending in [false, true] {
+                let mut s = fresh.clone();
+                let mut r = rng(11);
+                let mut events = run(&mut s, &mut r, k);
+                let asked = pending.then(|| s.ask(&mut r).unwrap());
+                let record = bytes(&(s.clone(), r.clone()));
+                let (mut s2, mut r2): (O, Xoshiro128PlusPlus) = load(&record).unwrap();
+                assert_eq!(s2, s, "k = {k}");
+                assert_eq!(bytes(&s2), bytes(&s));
+                if let Some(theta) = asked {
+                    assert_eq!(s2.pending(), Some(&theta));
+                    let c = cost(&theta, &mut r2);
+                    s2.tell(c).unwrap();
+                    events.push(event(&theta, c));
+                }
+                events.extend(run(&mut s2, &mut r2, total - events.len()));
+                assert_eq!(events, expected, "k = {k}, pending = {pending}");
+                assert_eq!(bytes(&s2), bytes(&reference), "k = {k}");
+                let (b1, b2) = (s2.best().unwrap(), reference.best().unwrap());
+                assert_eq!(b1.cost.to_bits(), b2.cost.to_bits());
+                assert_eq!(b1.theta, b2.theta);
+            }
+        }
+    }
+
+    fn bounds<const N: usize>() -> Bounds<N> {
+        Bounds::uniform(-1.0, 1.0).unwrap()
+    }
+
+    const CUTS: [usize; 5] = [0, 1, 5, 17, 40];
+
+    /// Coordinate search resumes bit for bit after a save and load at any point.
+    #[test]
+    fn coordinate_search_resumes() {
+        let s =
+            CoordinateSearch::<3>::try_new(bounds(), Vector::zeros(), CoordinateConfig::DEFAULT)
+                .unwrap();
+        check_resumes_bit_identically(s, 60, &CUTS);
+    }
+
+    /// Controlled random search (M = 40, beyond serde's own arrays) resumes bit for bit.
+    #[test]
+    fn controlled_random_search_resumes() {
+        let s = ControlledRandomSearch::<3, 40>::try_new(bounds(), CrsConfig::DEFAULT).unwrap();
+        check_resumes_bit_identically(s, 80, &CUTS);
+    }
+
+    /// The two-phase search resumes bit for bit across its hand-over.
+    #[test]
+    fn two_phase_resumes() {
+        let global =
+            ControlledRandomSearch::<2, 10>::try_new(bounds(), CrsConfig::DEFAULT).unwrap();
+        let s = TwoPhase::try_new(global, 20, CoordinateConfig::DEFAULT).unwrap();
+        check_resumes_bit_identically(s, 60, &[0, 5, 19, 20, 21, 40]);
+    }
+
+    /// SRACOS (with value suppression, archive M = 40) and RACOS resume bit for bit.
+    #[test]
+    fn sracos_and_racos_resume() {
+        let config = SracosConfig {
+            suppression: Some(Suppression {
+                non_update_allowed: 3,
+                resample_times: 2,
+                balance_rate: 0.5,
+            }),
+            ..SracosConfig::DEFAULT
+        };
+        let s = Sracos::<4, 3, 40>::try_new(bounds(), config).unwrap();
+        check_resumes_bit_identically(s, 80, &CUTS);
+        let s = Sracos::<4>::try_new(bounds(), SracosConfig::DEFAULT).unwrap();
+        check_resumes_bit_identically(s, 60, &CUTS);
+        let s = Racos::<4, 2, 34>::try_new(bounds(), RacosConfig::DEFAULT).unwrap();
+        check_resumes_bit_identically(s, 100, &CUTS);
+    }
+
+    /// Diagonal CEM resumes bit for bit, mid-batch and at a batch boundary.
+    #[test]
+    fn diagonal_cem_resumes() {
+        let s =
+            DiagonalCem::<3, 8, 4>::try_new(bounds(), Vector::zeros(), CemConfig::DEFAULT).unwrap();
+        check_resumes_bit_identically(s, 60, &[0, 1, 7, 8, 9, 40]);
+    }
+
+    /// CMA-ES (population 36, beyond serde's own arrays; active) resumes bit for bit.
+    #[test]
+    fn cmaes_resumes() {
+        let config = CmaesConfig {
+            active: true,
+            eigen_interval: 2,
+            ..CmaesConfig::DEFAULT
+        };
+        let s = Cmaes::<3, 36>::try_new(bounds(), Vector::zeros(), config).unwrap();
+        check_resumes_bit_identically(s, 120, &[0, 1, 35, 36, 37, 80]);
+        let s = Cmaes::<4, 7>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
+        check_resumes_bit_identically(s, 60, &CUTS);
+    }
+
+    /// ROCK* (memory M = 40) resumes bit for bit.
+    #[test]
+    fn rockstar_resumes() {
+        let s =
+            Rockstar::<3, 40>::try_new(bounds(), Vector::zeros(), RockstarConfig::DEFAULT).unwrap();
+        check_resumes_bit_identically(s, 60, &CUTS);
+    }
+
+    /// The enum over the algorithms resumes bit for bit in each variant.
+    #[test]
+    fn any_optimizer_resumes() {
+        let s: AnyOptimizer<3, 7, 3, 10> =
+            Cmaes::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT)
+                .unwrap()
+                .into();
+        check_resumes_bit_identically(s, 40, &[3, 20]);
+        let s: AnyOptimizer<3, 7, 3, 10> = Sracos::try_new(bounds(), SracosConfig::DEFAULT)
+            .unwrap()
+            .into();
+        check_resumes_bit_identically(s, 40, &[3, 20]);
+    }
+
+    fn sample_record() -> (Vec<u8>, Cmaes<3, 7>) {
+        let mut s =
+            Cmaes::<3, 7>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
+        run(&mut s, &mut rng(2), 10);
+        (bytes(&s), s)
+    }
+
+    /// A record for other sizes or another type is a shape error; another version a version
+    /// error (with a valid checksum, so that the header is what is checked).
+    #[test]
+    fn other_shapes_and_versions_are_refused() {
+        let (record, s) = sample_record();
+        assert_eq!(load::<Cmaes<3, 7>>(&record), Ok(s));
+        assert_eq!(load::<Cmaes<3, 8>>(&record), Err(RecordError::Shape));
+        assert_eq!(load::<Cmaes<4, 7>>(&record), Err(RecordError::Shape));
+        assert_eq!(load::<Rockstar<3, 7>>(&record), Err(RecordError::Shape));
+        assert_eq!(
+            load::<(Cmaes<3, 7>, Xoshiro128PlusPlus)>(&record),
+            Err(RecordError::Shape)
+        );
+        let mut other = record.clone();
+        other[0] = 2; // FORMAT_VERSION is a one-byte varint
+        let end = other.len() - 4;
+        let checksum = CHECKSUM.checksum(&other[..end]).to_le_bytes();
+        other[end..].copy_from_slice(&checksum);
+        assert_eq!(
+            load::<Cmaes<3, 7>>(&other),
+            Err(RecordError::Version { found: 2 })
+        );
+        extern crate alloc;
+        use alloc::string::ToString;
+        assert_eq!(
+            RecordError::Version { found: 2 }.to_string(),
+            "the record has format version 2, this build reads 1"
+        );
+    }
+
+    /// Every single corrupted byte, every truncation and every too-small buffer is an error,
+    /// never a panic or a wrong state.
+    #[test]
+    fn corruption_truncation_and_small_buffers_are_errors() {
+        let (record, s) = sample_record();
+        for i in 0..record.len() {
+            for flip in [0x01u8, 0x80, 0xff] {
+                let mut bad = record.clone();
+                bad[i] ^= flip;
+                assert_eq!(
+                    load::<Cmaes<3, 7>>(&bad),
+                    Err(RecordError::Corrupt),
+                    "byte {i}"
+                );
+            }
+        }
+        for len in 0..record.len() {
+            assert!(load::<Cmaes<3, 7>>(&record[..len]).is_err());
+        }
+        for len in 0..record.len() {
+            let mut buf = std::vec![0u8; len];
+            assert_eq!(
+                save(&s, &mut buf),
+                Err(RecordError::BufferTooSmall),
+                "{len}"
+            );
+        }
+        let mut buf = std::vec![0u8; record.len()];
+        assert_eq!(save(&s, &mut buf).unwrap(), &record[..]);
+    }
+
+    /// Payloads that are not a state of the type, behind a valid checksum and header, are
+    /// an encoding error, not a panic.
+    #[test]
+    fn garbage_behind_a_valid_header_is_refused() {
+        let (record, _) = sample_record();
+        let mut buf = [0u8; 64];
+        let header =
+            postcard::to_slice(&(FORMAT_VERSION, Cmaes::<3, 7>::SHAPE.as_slice()), &mut buf)
+                .unwrap()
+                .to_vec();
+        let mut r = rng(5);
+        for len in [0usize, 1, 7, 50, record.len() - header.len() - 4, 400] {
+            for _ in 0..20 {
+                let mut bad = header.clone();
+                bad.extend((0..len).map(|_| (r.next_u32() & 0xff) as u8));
+                let checksum = CHECKSUM.checksum(&bad).to_le_bytes();
+                bad.extend(checksum);
+                assert!(load::<Cmaes<3, 7>>(&bad).is_err());
+            }
+        }
+    }
+
+    /// Forges `tries` records of `s` after 15 evaluations, each with one payload byte
+    /// replaced at random and the checksum made valid again; whatever loads then runs 20
+    /// asks and tells. Returns how many loaded and how many of those panicked.
+    fn forge<const N: usize, O: Optimizer<N> + Persistent>(mut s: O, tries: u32) -> (u32, u32) {
+        let mut r = rng(1);
+        run(&mut s, &mut r, 15);
+        let record = bytes(&s);
+        let (mut loaded, mut panics) = (0, 0);
+        for i in 0..tries {
+            let mut bad = record.clone();
+            let at = 6 + (r.next_u32() as usize) % (bad.len() - 10);
+            bad[at] = r.next_u32() as u8;
+            let end = bad.len() - 4;
+            let checksum = CHECKSUM.checksum(&bad[..end]).to_le_bytes();
+            bad[end..].copy_from_slice(&checksum);
+            if let Ok(mut o) = load::<O>(&bad) {
+                loaded += 1;
+                let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    let mut r = rng(u64::from(i));
+                    for _ in 0..20 {
+                        if let Ok(theta) = o.ask(&mut r) {
+                            // A forged state may hand out a non-finite θ: an error, not a panic.
+                            let _ = o.tell(cost(&theta, &mut r));
+                        }
+                    }
+                }));
+                panics += u32::from(ran.is_err());
+            }
+        }
+        (loaded, panics)
+    }
+
+    /// A sample of forged records (one byte changed, checksum made valid) for every
+    /// optimizer: those that decode continue without a panic for 20 asks and tells. A
+    /// sample, not a proof: decoded states are not validated against the constructors'
+    /// invariants.
+    #[test]
+    fn forged_records_do_not_panic_in_a_sample() {
+        let (b, z) = (bounds::<3>(), Vector::<3>::zeros());
+        let results = [
+            forge(Sracos::<3>::try_new(b, SracosConfig::DEFAULT).unwrap(), 200),
+            forge(
+                Racos::<3, 2, 5>::try_new(b, RacosConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                CoordinateSearch::try_new(b, z, CoordinateConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                ControlledRandomSearch::<3, 10>::try_new(b, CrsConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                DiagonalCem::<3, 6, 3>::try_new(b, z, CemConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                Cmaes::<3, 6>::try_new(b, z, CmaesConfig::DEFAULT).unwrap(),
+                200,
+            ),
+            forge(
+                Rockstar::<3, 10>::try_new(b, z, RockstarConfig::DEFAULT).unwrap(),
+                200,
+            ),
+        ];
+        for (loaded, panics) in results {
+            assert!(loaded > 100);
+            assert_eq!(panics, 0);
+        }
+    }
+}
