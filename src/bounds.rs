@@ -106,6 +106,7 @@ impl<const N: usize> Bounds<N> {
 /// optimizers that search in normalised coordinates (`Cmaes`, `Rockstar`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct UnitMap<const N: usize> {
     centre: Vector<N>,
     half: Vector<N>,
