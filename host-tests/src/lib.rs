@@ -9,6 +9,7 @@ use ctrl_adapt::cost::Shaper;
 use ctrl_adapt::optimizer::{Error, Optimizer, Status, Vector};
 use rand_core::RngCore;
 
+pub mod adversarial;
 pub mod arm;
 pub mod auv;
 pub mod auv_task;

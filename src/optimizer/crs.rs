@@ -101,7 +101,7 @@ pub struct ControlledRandomSearch<const N: usize, const M: usize> {
     costs: [f32; M],
     /// Points of S evaluated so far (Step 0 ends at M).
     filled: usize,
-    /// J_max⁰ − J_min⁰.
+    /// (J_max⁰ − J_min⁰)/2, halved so that it is finite for any finite costs.
     initial_spread: f32,
     /// A permutation of 0..M, partially reshuffled for each subset draw.
     #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
@@ -184,7 +184,11 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
             let i = usize::from(i);
             self.points.get(i).zip(self.costs.get(i))
         };
-        let spread = j_max - j_min;
+        // Costs enter as halves (c/2 − j_min/2): the differences of costs near ±f32::MAX
+        // would overflow, and every term below is a ratio of cost differences, so a common
+        // factor ½ changes nothing else (bit for bit: scaling by a power of two commutes with
+        // rounding). `initial_spread` is stored halved as well.
+        let spread = 0.5 * j_max - 0.5 * j_min;
         let phi = N as f32 * spread * spread / self.initial_spread;
         let first = subset.first().copied().and_then(point);
         let Some((mut worst_point, mut worst_cost)) = first.map(|(p, &c)| (p, c)) else {
@@ -195,16 +199,16 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
             if c > worst_cost {
                 (worst_point, worst_cost) = (p, c);
             }
-            eta_sum += 1.0 / (c - j_min + phi);
+            eta_sum += 1.0 / (0.5 * c - 0.5 * j_min + phi);
         }
         let mut centroid = Vector::<N>::zeros();
         let mut weighted_cost = 0.0;
         for (p, &c) in subset.iter().filter_map(|&i| point(i)) {
-            let w = 1.0 / (c - j_min + phi) / eta_sum;
+            let w = 1.0 / (0.5 * c - 0.5 * j_min + phi) / eta_sum;
             centroid += p * w;
-            weighted_cost += w * c;
+            weighted_cost += w * (0.5 * c);
         }
-        let alpha = 1.0 - (worst_cost - weighted_cost) / (spread + phi);
+        let alpha = 1.0 - (0.5 * worst_cost - weighted_cost) / (spread + phi);
         centroid - (worst_point - centroid) * alpha
     }
 
@@ -232,6 +236,11 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
         let mut candidate = self.trial(rng, j_max, j_min);
         let mut redraws = 1;
         while !self.bounds.contains(&candidate) && redraws < self.config.max_redraws {
+            if candidate.iter().any(|v| !v.is_finite()) {
+                // Degenerate weights (a set of equal costs whose spread then grew from
+                // zero): no redraw can help; sample the box instead of clamping NaN.
+                return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
+            }
             candidate = self.trial(rng, j_max, j_min);
             redraws += 1;
         }
@@ -249,7 +258,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
             self.filled += 1;
             if self.filled == M {
                 let (_, j_max, j_min) = self.extremes();
-                self.initial_spread = j_max - j_min;
+                self.initial_spread = 0.5 * j_max - 0.5 * j_min;
             }
         } else {
             let (worst, j_max, _) = self.extremes();
@@ -306,6 +315,26 @@ mod tests {
             crs.tell(f(&t)).unwrap();
         }
         (crs.best().unwrap(), crs.status(), crs.evaluations())
+    }
+
+    /// Checks: costs near ±f32::MAX (their spread overflows f32) still give reflected trials,
+    /// not NaN clamped to the lower corner: of 50 candidates after the set is full, none is
+    /// the corner and all are inside the box.
+    #[test]
+    fn costs_near_f32_max_do_not_collapse_the_trials_to_a_corner() {
+        let bounds = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
+        let mut crs = ControlledRandomSearch::<2, 4>::try_new(bounds, CrsConfig::DEFAULT).unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(3);
+        for cost in [f32::MAX, -f32::MAX, 1.0, 2.0] {
+            crs.ask(&mut rng).unwrap();
+            crs.tell(cost).unwrap();
+        }
+        for k in 0..50 {
+            let t = crs.ask(&mut rng).unwrap();
+            assert!(bounds.contains(&t));
+            assert_ne!(t, *bounds.lower(), "candidate {k}");
+            crs.tell(f32::MAX * 0.5).unwrap();
+        }
     }
 
     /// Checks: from 20 seeds (random initial sets), CRS with m = 30 stops by its own test

@@ -1,0 +1,806 @@
+//! A seeded adversarial driver for the optimizers and the adapter.
+//!
+//! [`drive`] builds an optimizer on a random box (degenerate ones included: a few ulps wide,
+//! subnormal, near ±`f32::MAX`) with a random configuration (any field possibly NaN,
+//! infinite, zero, negative or huge) and then mixes, for as many operations as asked: `ask`,
+//! a repeated `ask`, `tell` with NaN, ±∞, subnormal, ±`f32::MAX`, plateau and ordinary
+//! costs, `tell` without `ask`, and now and then a rebuild. After **every** operation it
+//! checks the contract of [`Optimizer`]:
+//!
+//! * candidates are finite and inside the bounds, a pending candidate is repeated;
+//! * a refused call (`tell` without `ask`, a non-finite cost, `ask` on a stopped search)
+//!   answers with its error and leaves the whole optimizer unchanged (`Clone` + `PartialEq`);
+//! * `evaluations` counts the accepted tells, never beyond `max_evaluations`;
+//! * the best cost is the lowest cost told so far (so it never increases), its θ one of the
+//!   candidates told that cost;
+//! * `ask` fails only with [`Error::Stopped`], and exactly when the status is not running.
+//!
+//! [`drive_adapter`] does the same for the [`Adapter`] around a one-axis corrected PD:
+//! episodes in every mode, fixed-θ episodes (θ outside the box or NaN included), ticks with
+//! NaN, infinite, huge and subnormal states, aborts, mode switches and calls out of order.
+//! Every action must be finite and within the PD's limit, its distance from the nominal
+//! action within the correction envelope; the faulty ticks counted must be the ticks whose
+//! state or corrected action was not finite; a failed episode (aborted, too many faulty
+//! ticks, a non-finite cost) must be told the failure cost, any other learning episode its
+//! own cost; refused calls change nothing.
+//!
+//! A violation is returned, not panicked, with the seed and the operation's index, so that
+//! a test can also show that the driver catches a planted bug. A panic inside the library
+//! propagates (and fails the calling test) with the seed printed first.
+
+use std::fmt;
+use std::panic::{AssertUnwindSafe, catch_unwind, resume_unwind};
+
+use ctrl_adapt::controller::{
+    Adapter, AdapterConfig, AdapterError, Controller, CorrectedPd, LinearPolicy, Mode, Pd,
+    StateFeatures,
+};
+use ctrl_adapt::cost::Shaper;
+use ctrl_adapt::optimizer::{Bounds, Error, Optimizer, Status, Vector};
+use rand_core::{RngCore, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// The driver's RNG (one stream drives the choices, the boxes and the optimizer's draws).
+pub type DriverRng = Xoshiro256PlusPlus;
+
+/// A broken contract: which check, after which operation, of which seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Violation {
+    /// The driver's seed.
+    pub seed: u64,
+    /// The operation after which the check failed (0-based, over the whole run).
+    pub operation: u64,
+    /// What was expected and what happened.
+    pub message: String,
+}
+
+impl fmt::Display for Violation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "seed {}, operation {}: {}",
+            self.seed, self.operation, self.message
+        )
+    }
+}
+
+/// What a run exercised.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Tally {
+    /// Operations run (every call on the optimizer or adapter, constructions included).
+    pub operations: u64,
+    /// Optimizers (or adapters) built and driven.
+    pub built: u64,
+    /// Boxes or configurations refused at construction.
+    pub refused_constructions: u64,
+    /// Candidates handed out by `ask` (repeats included).
+    pub asks: u64,
+    /// Costs accepted.
+    pub accepted_tells: u64,
+    /// Calls refused with an error (and checked to change nothing).
+    pub refused_calls: u64,
+    /// Runs that ended with the search stopped (converged or budget spent).
+    pub stopped: u64,
+    /// Adapter only: faulty ticks counted, and episodes told the failure cost.
+    pub faulty_ticks: u64,
+    /// Adapter only: failed learning episodes.
+    pub failed_episodes: u64,
+}
+
+impl fmt::Display for Tally {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} operations, {} built ({} refused at construction), {} asks, {} accepted tells, \
+             {} refused calls, {} runs stopped",
+            self.operations,
+            self.built,
+            self.refused_constructions,
+            self.asks,
+            self.accepted_tells,
+            self.refused_calls,
+            self.stopped
+        )?;
+        if self.faulty_ticks + self.failed_episodes > 0 {
+            write!(
+                f,
+                ", {} faulty ticks, {} failed episodes",
+                self.faulty_ticks, self.failed_episodes
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// A value from the corners of `f32`: NaN, ±∞, ±`f32::MAX`, subnormals, ±0, values near 1
+/// and wide-ranging ordinary values; any bit pattern now and then.
+pub fn adversarial_f32(rng: &mut impl RngCore) -> f32 {
+    match rng.next_u32() % 12 {
+        0 => f32::NAN,
+        1 => f32::INFINITY,
+        2 => f32::NEG_INFINITY,
+        3 => f32::MAX,
+        4 => -f32::MAX,
+        5 => f32::from_bits(1 + rng.next_u32() % 0x007f_ffff), // a positive subnormal
+        6 => -f32::from_bits(1 + rng.next_u32() % 0x007f_ffff),
+        7 => 0.0,
+        8 => -0.0,
+        9 => f32::from_bits(rng.next_u32()), // any pattern, NaN payloads included
+        10 => 1.0 + unit(rng) * 1e-6,
+        _ => (unit(rng) - 0.5) * 10f32.powi((rng.next_u32() % 16) as i32 - 4),
+    }
+}
+
+/// An adversarial or ordinary value for a configuration field whose default is `default`:
+/// kept three times in four (so that most configurations are valid and get driven), else a
+/// corner of `f32` or a scaled default.
+pub fn field(rng: &mut impl RngCore, default: f32) -> f32 {
+    match rng.next_u32() % 16 {
+        0..=11 => default,
+        12 => default * (0.1 + 10.0 * unit(rng)),
+        13 => -default,
+        _ => adversarial_f32(rng),
+    }
+}
+
+/// A count for a configuration field whose default is `default`: usually kept, else 0, 1,
+/// a small number or `u32::MAX`.
+pub fn count(rng: &mut impl RngCore, default: u32) -> u32 {
+    match rng.next_u32() % 16 {
+        0..=11 => default,
+        12 => 0,
+        13 => 1,
+        14 => rng.next_u32() % 8,
+        _ => u32::MAX,
+    }
+}
+
+/// A cap on the work of one call (CRS's redraws, ROCK*'s descent steps): usually
+/// `default`, else 0, 1, a small number or 1,000. Not `u32::MAX`: that is a valid setting
+/// whose call then runs as long as it was told to, which a driver of a million operations
+/// cannot wait for (the caps' documentation says so).
+pub fn cap(rng: &mut impl RngCore, default: u32) -> u32 {
+    match rng.next_u32() % 16 {
+        0..=11 => default,
+        12 => 0,
+        13 => 1,
+        14 => rng.next_u32() % 8,
+        _ => 1000,
+    }
+}
+
+/// A budget: small (so that runs end and restart often), occasionally 0 or unlimited.
+pub fn budget(rng: &mut impl RngCore) -> u32 {
+    match rng.next_u32() % 20 {
+        0 => 0,
+        1 => u32::MAX,
+        _ => 1 + rng.next_u32() % 300,
+    }
+}
+
+/// A uniform draw in [0, 1).
+fn unit(rng: &mut impl RngCore) -> f32 {
+    (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32
+}
+
+/// A box with coordinates of every kind: ordinary, a few ulps wide, subnormal, far from the
+/// origin, nearly `f32::MAX` wide; and now and then an invalid one (NaN, inverted, empty,
+/// overflowing width), which construction must refuse.
+pub fn adversarial_bounds<const N: usize>(rng: &mut impl RngCore) -> Result<Bounds<N>, Error> {
+    let mut lower = Vector::<N>::zeros();
+    let mut upper = Vector::<N>::zeros();
+    for i in 0..N {
+        let (lo, hi) = match rng.next_u32() % 10 {
+            0 => {
+                let lo = (unit(rng) - 0.5) * 1e3;
+                let ulps = 1 + rng.next_u32() % 4;
+                (lo, f32::from_bits(step_up(lo.to_bits(), lo, ulps)))
+            }
+            1 => (0.0, f32::from_bits(1 + rng.next_u32() % 100)), // subnormal width
+            2 => {
+                let lo = 1e30 * (unit(rng) + 0.5);
+                (lo, lo * 1.001)
+            }
+            3 => (-f32::MAX / 2.0, f32::MAX / 2.0),
+            4 if rng.next_u32().is_multiple_of(8) => (adversarial_f32(rng), adversarial_f32(rng)),
+            _ => {
+                let lo = (unit(rng) - 0.5) * 20.0;
+                (lo, lo + 0.01 + unit(rng) * 20.0)
+            }
+        };
+        lower[i] = lo;
+        upper[i] = hi;
+    }
+    Bounds::try_new(lower, upper)
+}
+
+/// The bits of the f32 `ulps` steps above `value` (whose bits are `bits`), towards +∞.
+fn step_up(bits: u32, value: f32, ulps: u32) -> u32 {
+    if value == 0.0 {
+        ulps
+    } else if value > 0.0 {
+        bits + ulps
+    } else {
+        bits - ulps
+    }
+}
+
+/// A point of the box, at a corner, on a face or inside, for starts and fixed θ.
+pub fn point_in<const N: usize>(rng: &mut impl RngCore, bounds: &Bounds<N>) -> Vector<N> {
+    Vector::from_fn(|i, _| {
+        let (lo, hi) = (bounds.lower()[i], bounds.upper()[i]);
+        match rng.next_u32() % 4 {
+            0 => lo,
+            1 => hi,
+            _ => (lo + unit(rng) * (hi - lo)).min(hi),
+        }
+    })
+}
+
+/// A cost for the candidate `theta`: adversarial one time in three, a plateau one time in
+/// six, else the sphere ‖θ‖² (scaled into range) so that the searches move.
+fn adversarial_cost<const N: usize>(
+    rng: &mut impl RngCore,
+    theta: &Vector<N>,
+    plateau: f32,
+) -> f32 {
+    match rng.next_u32() % 6 {
+        0 | 1 => adversarial_f32(rng),
+        2 => plateau,
+        _ => theta
+            .iter()
+            .map(|v| (v * 1e-3) * (v * 1e-3))
+            .sum::<f32>()
+            .min(f32::MAX),
+    }
+}
+
+/// Whether two states are the same, NaN fields included (`PartialEq` says NaN ≠ NaN: an
+/// adapter whose shaper last saw a NaN would never equal its own copy).
+fn same<T: PartialEq + fmt::Debug>(a: &T, b: &T) -> bool {
+    a == b || format!("{a:?}") == format!("{b:?}")
+}
+
+/// Runs `operation` and turns a panic into a printed seed before propagating it.
+fn guarded<T>(seed: u64, operation: u64, f: impl FnOnce() -> T) -> T {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(value) => value,
+        Err(panic) => {
+            eprintln!("adversarial driver: panic at seed {seed}, operation {operation}");
+            resume_unwind(panic)
+        }
+    }
+}
+
+/// What the driver expects of one optimizer instance.
+struct Model<const N: usize> {
+    pending: Option<Vector<N>>,
+    evaluations: u32,
+    /// The lowest cost told and every candidate told exactly that cost.
+    lowest: Option<(f32, Vec<Vector<N>>)>,
+}
+
+impl<const N: usize> Model<N> {
+    fn new() -> Self {
+        Self {
+            pending: None,
+            evaluations: 0,
+            lowest: None,
+        }
+    }
+}
+
+/// Drives optimizers built by `build` (from the driver's RNG, a box, and a budget) for
+/// `operations` operations from `seed`, checking the contract after every one (module docs).
+/// `budget_of` reads back the budget an optimizer was built with, for the evaluations
+/// check.
+pub fn drive<const N: usize, O>(
+    seed: u64,
+    operations: u64,
+    mut build: impl FnMut(&mut DriverRng, Bounds<N>, u32) -> Result<O, Error>,
+) -> Result<Tally, Violation>
+where
+    O: Optimizer<N> + Clone + PartialEq + fmt::Debug,
+{
+    let mut rng = DriverRng::seed_from_u64(seed);
+    let mut tally = Tally::default();
+    let mut op = 0u64;
+    let fail = |op: u64, message: String| Violation {
+        seed,
+        operation: op,
+        message,
+    };
+    'build: while op < operations {
+        // Construction: boxes and configurations, valid or not.
+        op += 1;
+        tally.operations += 1;
+        let Ok(bounds) = adversarial_bounds::<N>(&mut rng) else {
+            tally.refused_constructions += 1;
+            continue;
+        };
+        let limit = budget(&mut rng);
+        let built = guarded(seed, op, || build(&mut rng, bounds, limit));
+        let mut o = match built {
+            Ok(o) => o,
+            Err(_) => {
+                tally.refused_constructions += 1;
+                continue;
+            }
+        };
+        tally.built += 1;
+        if o.bounds() != &bounds {
+            return Err(fail(
+                op,
+                format!("bounds {:?} became {:?}", bounds, o.bounds()),
+            ));
+        }
+        let mut model = Model::<N>::new();
+        let mut plateau = adversarial_cost(&mut rng, &Vector::<N>::zeros(), 1.0);
+        if !plateau.is_finite() {
+            plateau = 1.0;
+        }
+        let mut stopped_asks = 0;
+        while op < operations {
+            op += 1;
+            tally.operations += 1;
+            let choice = rng.next_u32() % 100;
+            if choice == 0 {
+                continue 'build; // abandon this one, build another
+            }
+            if choice < 55 {
+                // ask (a repeat when a candidate is pending)
+                let before = o.clone();
+                let result = guarded(seed, op, || o.ask(&mut rng));
+                match result {
+                    Ok(theta) => {
+                        tally.asks += 1;
+                        if !theta.iter().all(|v| v.is_finite()) || !o.bounds().contains(&theta) {
+                            return Err(fail(
+                                op,
+                                format!("candidate {theta:?} outside {:?}", o.bounds()),
+                            ));
+                        }
+                        if let Some(p) = model.pending
+                            && p != theta
+                        {
+                            return Err(fail(
+                                op,
+                                format!("ask with {p:?} pending returned {theta:?}"),
+                            ));
+                        }
+                        if before.status() != Status::Running && model.pending.is_none() {
+                            return Err(fail(
+                                op,
+                                format!("ask succeeded with status {:?}", before.status()),
+                            ));
+                        }
+                        model.pending = Some(theta);
+                    }
+                    Err(e) => {
+                        tally.refused_calls += 1;
+                        if e != Error::Stopped {
+                            return Err(fail(op, format!("ask failed with {e:?}")));
+                        }
+                        if before.status() == Status::Running {
+                            return Err(fail(op, "ask refused while running".into()));
+                        }
+                        if !same(&o, &before) {
+                            return Err(fail(op, "a refused ask changed the state".into()));
+                        }
+                        stopped_asks += 1;
+                        if stopped_asks > 3 {
+                            tally.stopped += 1;
+                            continue 'build;
+                        }
+                    }
+                }
+            } else {
+                // tell, with or without a candidate pending
+                let cost = match model.pending {
+                    Some(theta) => adversarial_cost(&mut rng, &theta, plateau),
+                    None => adversarial_f32(&mut rng),
+                };
+                let before = o.clone();
+                let result = guarded(seed, op, || o.tell(cost));
+                let expected = match model.pending {
+                    None => Err(Error::NoPendingAsk),
+                    Some(_) if !cost.is_finite() => Err(Error::NonFinite("cost")),
+                    Some(_) => Ok(()),
+                };
+                if result != expected {
+                    return Err(fail(
+                        op,
+                        format!("tell({cost:e}) returned {result:?}, expected {expected:?}"),
+                    ));
+                }
+                if result.is_err() {
+                    tally.refused_calls += 1;
+                    if !same(&o, &before) {
+                        return Err(fail(
+                            op,
+                            format!("a refused tell({cost:e}) changed the state"),
+                        ));
+                    }
+                } else {
+                    tally.accepted_tells += 1;
+                    let theta = model.pending.take().unwrap_or_else(Vector::zeros);
+                    model.evaluations += 1;
+                    match &mut model.lowest {
+                        Some((c, thetas)) if cost == *c => thetas.push(theta),
+                        Some((c, _)) if cost > *c => {}
+                        _ => model.lowest = Some((cost, vec![theta])),
+                    }
+                }
+            }
+            // The state after every operation.
+            if o.pending() != model.pending.as_ref() {
+                return Err(fail(
+                    op,
+                    format!("pending {:?}, expected {:?}", o.pending(), model.pending),
+                ));
+            }
+            if o.evaluations() != model.evaluations {
+                return Err(fail(
+                    op,
+                    format!(
+                        "{} evaluations, {} accepted",
+                        o.evaluations(),
+                        model.evaluations
+                    ),
+                ));
+            }
+            if model.evaluations > limit {
+                return Err(fail(
+                    op,
+                    format!("{} evaluations over a budget of {limit}", model.evaluations),
+                ));
+            }
+            if model.evaluations == limit && o.status() == Status::Running {
+                return Err(fail(
+                    op,
+                    format!("still running after its budget of {limit}"),
+                ));
+            }
+            match (o.best(), &model.lowest) {
+                (None, None) => {}
+                (Some(b), Some((c, thetas))) => {
+                    if b.cost != *c {
+                        return Err(fail(
+                            op,
+                            format!("best cost {:e}, lowest told {c:e}", b.cost),
+                        ));
+                    }
+                    if !thetas.contains(&b.theta) {
+                        return Err(fail(op, format!("best θ {:?} was not told {c:e}", b.theta)));
+                    }
+                }
+                (b, l) => return Err(fail(op, format!("best {b:?}, lowest told {l:?}"))),
+            }
+        }
+    }
+    Ok(tally)
+}
+
+/// A shaper whose cost is the last observation (so the driver chooses each episode's cost,
+/// NaN and ∞ included); its cost before any observation is 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LastObservation(f32);
+
+impl Shaper for LastObservation {
+    type Observation = f32;
+    fn reset(&mut self) {
+        self.0 = 0.0;
+    }
+    fn observe(&mut self, observation: &f32, _dt: f32) {
+        self.0 = *observation;
+    }
+    fn cost(&self) -> f32 {
+        self.0
+    }
+    fn skipped(&self) -> u32 {
+        0
+    }
+}
+
+/// The adapter's controller in the driver: one axis, PD limit 2, correction envelope 0.5.
+pub type DriverController = CorrectedPd<1, 2, 2, 2, StateFeatures<2>>;
+
+/// The PD's output limit and the correction envelope of [`DriverController`].
+pub const ACTION_LIMIT: f32 = 2.0;
+/// See [`ACTION_LIMIT`].
+pub const ENVELOPE: f32 = 0.5;
+
+fn driver_controller() -> DriverController {
+    let pd = Pd::<1>::try_new(Vector::repeat(3.0), Vector::repeat(0.7))
+        .and_then(|pd| pd.with_limit(Vector::repeat(ACTION_LIMIT)))
+        .expect("valid PD");
+    let policy = LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(ENVELOPE))
+        .expect("valid policy");
+    CorrectedPd::new(pd, policy)
+}
+
+/// Drives adapters around optimizers built by `build` (module docs), from `seed`, for
+/// `operations` operations.
+pub fn drive_adapter<O>(
+    seed: u64,
+    operations: u64,
+    mut build: impl FnMut(&mut DriverRng, Bounds<2>, u32) -> Result<O, Error>,
+) -> Result<Tally, Violation>
+where
+    O: Optimizer<2> + Clone + PartialEq + fmt::Debug,
+{
+    type A<O> = Adapter<O, DriverController, LastObservation, 2, 2, 1>;
+    let mut rng = DriverRng::seed_from_u64(seed);
+    let mut tally = Tally::default();
+    let mut op = 0u64;
+    let fail = |op: u64, message: String| Violation {
+        seed,
+        operation: op,
+        message,
+    };
+    'build: while op < operations {
+        op += 1;
+        tally.operations += 1;
+        let Ok(bounds) = adversarial_bounds::<2>(&mut rng) else {
+            tally.refused_constructions += 1;
+            continue;
+        };
+        let limit = budget(&mut rng);
+        let Ok(optimizer) = guarded(seed, op, || build(&mut rng, bounds, limit)) else {
+            tally.refused_constructions += 1;
+            continue;
+        };
+        let config = AdapterConfig {
+            dt: field(&mut rng, 0.05),
+            failure_cost: field(&mut rng, 50.0),
+            max_faulty_ticks: count(&mut rng, 3),
+            learning_episodes: count(&mut rng, 40),
+        };
+        let initial = if rng.next_u32().is_multiple_of(8) {
+            Vector::from_fn(|_, _| adversarial_f32(&mut rng))
+        } else {
+            point_in(&mut rng, &bounds)
+        };
+        let built: Result<A<O>, Error> = guarded(seed, op, || {
+            Adapter::try_new(
+                optimizer,
+                driver_controller(),
+                LastObservation(0.0),
+                config,
+                initial,
+            )
+        });
+        let mut adapter = match built {
+            Ok(a) => a,
+            Err(_) => {
+                if config.validate().is_ok() && bounds.check(&initial, "initial").is_ok() {
+                    return Err(fail(op, format!("a valid adapter was refused: {config:?}")));
+                }
+                tally.refused_constructions += 1;
+                continue;
+            }
+        };
+        if config.validate().is_err() {
+            return Err(fail(
+                op,
+                format!("an invalid configuration was accepted: {config:?}"),
+            ));
+        }
+        tally.built += 1;
+        // The episode in progress: θ, mode, ticks, faulty ticks, as the driver counts them.
+        let mut episode: Option<(Vector<2>, Mode, u32, u32)> = None;
+        let mut learned = 0u32;
+        let controller = driver_controller();
+        while op < operations {
+            op += 1;
+            tally.operations += 1;
+            let choice = rng.next_u32() % 100;
+            let before = adapter.clone();
+            let refused =
+                |result: Result<(), AdapterError>, adapter: &A<O>| -> Result<bool, String> {
+                    match result {
+                        Ok(()) => Ok(false),
+                        Err(e) if same(adapter, &before) => {
+                            let _ = e;
+                            Ok(true)
+                        }
+                        Err(e) => Err(format!("a refused call ({e:?}) changed the adapter")),
+                    }
+                };
+            if choice == 0 {
+                continue 'build;
+            } else if choice < 8 {
+                // begin an episode
+                let mode = adapter.mode();
+                let result = guarded(seed, op, || adapter.begin_episode(&mut rng));
+                match (result, episode) {
+                    (Ok(_), Some(_)) => return Err(fail(op, "began an episode inside one".into())),
+                    (Err(e), None) => {
+                        return Err(fail(op, format!("begin_episode refused: {e:?}")));
+                    }
+                    (Ok(theta), None) => {
+                        if !adapter.optimizer().bounds().contains(&theta)
+                            && adapter.mode() != Mode::Nominal
+                        {
+                            return Err(fail(op, format!("episode θ {theta:?} outside the box")));
+                        }
+                        if mode == Mode::Learn
+                            && adapter.mode() == Mode::Learn
+                            && learned >= config.learning_episodes
+                        {
+                            return Err(fail(op, "learning past learning_episodes".into()));
+                        }
+                        let deployed = adapter.optimizer().best().map_or(initial, |b| b.theta);
+                        if adapter.mode() == Mode::Deploy && theta != deployed {
+                            return Err(fail(op, format!("deployed {theta:?}, best {deployed:?}")));
+                        }
+                        tally.asks += u64::from(adapter.mode() == Mode::Learn);
+                        episode = Some((theta, adapter.mode(), 0, 0));
+                    }
+                    (Err(_), _) => {
+                        tally.refused_calls += 1;
+                        if !same(&adapter, &before) {
+                            return Err(fail(
+                                op,
+                                "a refused begin_episode changed the adapter".into(),
+                            ));
+                        }
+                    }
+                }
+            } else if choice < 10 {
+                // a fixed θ, inside the box or not
+                let theta = if rng.next_u32().is_multiple_of(3) {
+                    Vector::from_fn(|_, _| adversarial_f32(&mut rng))
+                } else {
+                    point_in(&mut rng, &bounds)
+                };
+                let result = guarded(seed, op, || adapter.begin_fixed_episode(theta));
+                let should = episode.is_none() && bounds.check(&theta, "theta").is_ok();
+                match refused(result, &adapter) {
+                    Ok(true) if !should => tally.refused_calls += 1,
+                    Ok(false) if should => episode = Some((theta, Mode::Deploy, 0, 0)),
+                    Ok(r) => {
+                        return Err(fail(
+                            op,
+                            format!(
+                                "begin_fixed_episode({theta:?}) refused = {r}, expected {}",
+                                !should
+                            ),
+                        ));
+                    }
+                    Err(m) => return Err(fail(op, m)),
+                }
+            } else if choice < 14 {
+                // end or abort
+                let abort = rng.next_u32().is_multiple_of(3);
+                let result = guarded(seed, op, || {
+                    if abort {
+                        adapter.abort_episode()
+                    } else {
+                        adapter.end_episode()
+                    }
+                });
+                match (result, episode.take()) {
+                    (Err(AdapterError::NoEpisode), None) => {
+                        tally.refused_calls += 1;
+                        if !same(&adapter, &before) {
+                            return Err(fail(op, "a refused end changed the adapter".into()));
+                        }
+                    }
+                    (Ok(report), Some((theta, mode, ticks, faulty))) => {
+                        if (report.theta, report.mode, report.ticks, report.faulty_ticks)
+                            != (theta, mode, ticks, faulty)
+                        {
+                            return Err(fail(
+                                op,
+                                format!(
+                                    "report {report:?}, expected θ {theta:?}, {mode:?}, {ticks} ticks, {faulty} faulty"
+                                ),
+                            ));
+                        }
+                        let failed =
+                            abort || !report.cost.is_finite() || faulty > config.max_faulty_ticks;
+                        if report.failed != failed {
+                            return Err(fail(
+                                op,
+                                format!("failed = {}, expected {failed}", report.failed),
+                            ));
+                        }
+                        let told = (mode == Mode::Learn).then_some({
+                            if failed {
+                                config.failure_cost
+                            } else {
+                                report.cost
+                            }
+                        });
+                        if report.told != told {
+                            return Err(fail(
+                                op,
+                                format!("told {:?}, expected {told:?}", report.told),
+                            ));
+                        }
+                        if told.is_some() {
+                            learned += 1;
+                            tally.accepted_tells += 1;
+                            tally.failed_episodes += u64::from(failed);
+                            if adapter.learning_episodes() != learned {
+                                return Err(fail(op, "learning episodes miscounted".into()));
+                            }
+                        }
+                        tally.faulty_ticks += u64::from(faulty);
+                    }
+                    (r, e) => {
+                        return Err(fail(op, format!("end returned {r:?} with episode {e:?}")));
+                    }
+                }
+            } else if choice < 16 {
+                let mode =
+                    [Mode::Learn, Mode::Deploy, Mode::Nominal][(rng.next_u32() % 3) as usize];
+                let result = guarded(seed, op, || adapter.set_mode(mode));
+                match refused(result, &adapter) {
+                    Ok(true) if episode.is_some() => tally.refused_calls += 1,
+                    Ok(false) if episode.is_none() && adapter.mode() == mode => {}
+                    Ok(r) => {
+                        return Err(fail(
+                            op,
+                            format!("set_mode refused = {r} with episode {episode:?}"),
+                        ));
+                    }
+                    Err(m) => return Err(fail(op, m)),
+                }
+            } else {
+                // a control tick
+                let state = if rng.next_u32().is_multiple_of(4) {
+                    Vector::<2>::from_fn(|_, _| adversarial_f32(&mut rng))
+                } else {
+                    Vector::<2>::from_fn(|_, _| (unit(&mut rng) - 0.5) * 4.0)
+                };
+                let observation = if rng.next_u32().is_multiple_of(10) {
+                    adversarial_f32(&mut rng)
+                } else {
+                    unit(&mut rng)
+                };
+                let action = guarded(seed, op, || adapter.control(&state, &observation));
+                let u = action[0];
+                if !u.is_finite() || u.abs() > ACTION_LIMIT {
+                    return Err(fail(op, format!("action {u:e} for state {state:?}")));
+                }
+                let nominal = controller.nominal(&state, 0.0)[0];
+                let corrected = matches!(episode, Some((_, Mode::Learn | Mode::Deploy, _, _)));
+                let allowed = if corrected {
+                    ENVELOPE * (1.0 + 1e-6)
+                } else {
+                    0.0
+                };
+                if nominal.is_finite() && (u - nominal).abs() > allowed {
+                    return Err(fail(
+                        op,
+                        format!(
+                            "action {u:e} is {:e} from the nominal {nominal:e}",
+                            u - nominal
+                        ),
+                    ));
+                }
+                if let Some((theta, mode, ticks, faulty)) = &mut episode {
+                    let state_ok = state.iter().all(|v| v.is_finite());
+                    let time = *ticks as f32 * config.dt;
+                    let proposed = match mode {
+                        Mode::Nominal => controller.nominal(&state, time),
+                        _ => controller.corrected(theta, &state, time),
+                    };
+                    if !state_ok || !proposed.iter().all(|v| v.is_finite()) {
+                        *faulty += 1;
+                    }
+                    *ticks += 1;
+                }
+            }
+            if adapter.in_episode() != episode.is_some() {
+                return Err(fail(
+                    op,
+                    "the adapter's episode and the driver's differ".into(),
+                ));
+            }
+        }
+    }
+    Ok(tally)
+}

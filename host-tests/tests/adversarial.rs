@@ -1,0 +1,376 @@
+//! The adversarial driver ([`host_tests::adversarial`]) on every optimizer and on the
+//! adapter: a million operations each in release (CI runs `cargo test --release -p
+//! host-tests --test adversarial`), twenty thousand in a debug `cargo test`. Each test
+//! checks, after every operation, the contract listed in the driver's docs, and prints what
+//! it exercised. `a_planted_bug_is_caught` shows the driver failing on an optimizer with a
+//! deliberate defect.
+
+use ctrl_adapt::optimizer::{
+    Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
+    CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos, RacosConfig, Replacement,
+    Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector,
+    Weighting,
+};
+use host_tests::adversarial::{
+    DriverRng, Tally, cap, count, drive, drive_adapter, field, point_in,
+};
+use rand_core::RngCore;
+
+/// Operations per optimizer: the million in release, fewer in debug builds.
+const OPERATIONS: u64 = if cfg!(debug_assertions) {
+    20_000
+} else {
+    1_000_000
+};
+
+const N: usize = 3;
+
+fn report(name: &str, result: Result<Tally, host_tests::adversarial::Violation>) {
+    match result {
+        Ok(tally) => {
+            println!("{name}: {tally}");
+            assert!(tally.operations >= OPERATIONS, "{name}: ran {tally}");
+            assert!(tally.built > 0 && tally.accepted_tells > 0 && tally.refused_calls > 0);
+        }
+        Err(v) => panic!("{name}: {v}"),
+    }
+}
+
+fn coordinate(
+    rng: &mut DriverRng,
+    bounds: Bounds<N>,
+    limit: u32,
+) -> Result<CoordinateSearch<N>, Error> {
+    let d = CoordinateConfig::DEFAULT;
+    let config = CoordinateConfig {
+        initial_step: field(rng, d.initial_step),
+        contraction: field(rng, d.contraction),
+        expansion: field(rng, d.expansion),
+        sufficient_decrease: field(rng, d.sufficient_decrease),
+        tolerance: field(rng, d.tolerance),
+        max_evaluations: limit,
+    };
+    let start = point_in(rng, &bounds);
+    CoordinateSearch::try_new(bounds, start, config)
+}
+
+fn crs_config(rng: &mut DriverRng, limit: u32) -> CrsConfig {
+    let d = CrsConfig::DEFAULT;
+    CrsConfig {
+        tolerance: field(rng, d.tolerance),
+        max_evaluations: limit,
+        max_redraws: cap(rng, d.max_redraws),
+    }
+}
+
+fn sracos_config(rng: &mut DriverRng, limit: u32) -> SracosConfig {
+    let d = SracosConfig::DEFAULT;
+    SracosConfig {
+        exploration_rate: field(rng, d.exploration_rate),
+        uncertain_bits: (rng.next_u32().is_multiple_of(4)).then(|| (rng.next_u32() % 5) as u8),
+        replacement: [
+            Replacement::Worst,
+            Replacement::Random,
+            Replacement::LargestMargin,
+        ][(rng.next_u32() % 3) as usize],
+        suppression: (rng.next_u32().is_multiple_of(3)).then(|| Suppression {
+            non_update_allowed: count(rng, 5),
+            resample_times: count(rng, 2),
+            balance_rate: field(rng, 0.5),
+        }),
+        max_evaluations: limit,
+    }
+}
+
+#[test]
+fn coordinate_search() {
+    report("CoordinateSearch<3>", drive(1, OPERATIONS, coordinate));
+}
+
+#[test]
+fn controlled_random_search() {
+    report(
+        "ControlledRandomSearch<3, 8>",
+        drive(2, OPERATIONS, |rng, bounds, limit| {
+            ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, limit))
+        }),
+    );
+}
+
+#[test]
+fn two_phase() {
+    report(
+        "TwoPhase<ControlledRandomSearch<3, 8>>",
+        drive(3, OPERATIONS, |rng, bounds, limit| {
+            // The two budgets add up to `limit`, which the driver checks.
+            let global_budget = limit / 2;
+            let global =
+                ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, u32::MAX))?;
+            let local = CoordinateConfig {
+                max_evaluations: limit - global_budget,
+                ..CoordinateConfig::DEFAULT
+            };
+            TwoPhase::try_new(global, global_budget, local)
+        }),
+    );
+}
+
+#[test]
+fn sracos() {
+    report(
+        "Sracos<3>",
+        drive(4, OPERATIONS, |rng, bounds, limit| {
+            Sracos::<N>::try_new(bounds, sracos_config(rng, limit))
+        }),
+    );
+}
+
+#[test]
+fn racos() {
+    report(
+        "Racos<3>",
+        drive(5, OPERATIONS, |rng, bounds, limit| {
+            let s = sracos_config(rng, limit);
+            Racos::<N>::try_new(
+                bounds,
+                RacosConfig {
+                    exploration_rate: s.exploration_rate,
+                    uncertain_bits: s.uncertain_bits,
+                    max_evaluations: limit,
+                },
+            )
+        }),
+    );
+}
+
+#[test]
+fn diagonal_cem() {
+    report(
+        "DiagonalCem<3, 6, 3>",
+        drive(6, OPERATIONS, |rng, bounds, limit| {
+            let d = CemConfig::DEFAULT;
+            let config = CemConfig {
+                weighting: match rng.next_u32() % 3 {
+                    0 => Weighting::Cem,
+                    1 => Weighting::CmaEs,
+                    _ => Weighting::PiBb {
+                        h: field(rng, 10.0),
+                    },
+                },
+                elite: (rng.next_u32().is_multiple_of(3)).then(|| (rng.next_u32() % 5) as usize),
+                initial_variance: field(rng, d.initial_variance),
+                adapt_covariance: rng.next_u32().is_multiple_of(2),
+                learning_rate: field(rng, d.learning_rate),
+                exploration_floor: field(rng, d.exploration_floor),
+                min_variance: field(rng, d.min_variance),
+                max_variance: field(rng, d.max_variance),
+                first_is_mean: rng.next_u32().is_multiple_of(2),
+                tolerance: field(rng, 1e-6),
+                max_evaluations: limit,
+            };
+            let mean = point_in(rng, &bounds);
+            DiagonalCem::<N, 6, 3>::try_new(bounds, mean, config)
+        }),
+    );
+}
+
+#[test]
+fn cmaes() {
+    report(
+        "Cmaes<3, 7>",
+        drive(7, OPERATIONS, |rng, bounds, limit| {
+            let d = CmaesConfig::DEFAULT;
+            let config = CmaesConfig {
+                initial_sigma: field(rng, d.initial_sigma),
+                max_sigma: field(rng, d.max_sigma),
+                penalty: field(rng, d.penalty),
+                eigen_interval: count(rng, d.eigen_interval),
+                tolerance: field(rng, d.tolerance),
+                max_evaluations: limit,
+                active: rng.next_u32().is_multiple_of(2),
+            };
+            let mean = point_in(rng, &bounds);
+            Cmaes::<N, 7>::try_new(bounds, mean, config)
+        }),
+    );
+}
+
+#[test]
+fn rockstar() {
+    report(
+        "Rockstar<3, 15>",
+        drive(8, OPERATIONS, |rng, bounds, limit| {
+            let d = RockstarConfig::DEFAULT;
+            let maybe = |rng: &mut DriverRng, v: f32| {
+                (rng.next_u32().is_multiple_of(4)).then(|| field(rng, v))
+            };
+            let config = RockstarConfig {
+                initial_sigma: field(rng, d.initial_sigma),
+                max_sigma: field(rng, d.max_sigma),
+                lambda: field(rng, d.lambda),
+                near_radius: field(rng, d.near_radius),
+                initial_samples: count(rng, d.initial_samples),
+                step_gain: field(rng, d.step_gain),
+                descent_iterations: cap(rng, d.descent_iterations),
+                trust_radius: field(rng, d.trust_radius),
+                descent_tolerance: field(rng, d.descent_tolerance),
+                kappa: field(rng, d.kappa),
+                zeta: maybe(rng, 1.2),
+                xi: maybe(rng, 1.05),
+                c_c: maybe(rng, 0.3),
+                c_cov: maybe(rng, 0.2),
+                tolerance: field(rng, d.tolerance),
+                max_evaluations: limit,
+            };
+            let start = point_in(rng, &bounds);
+            Rockstar::<N, 15>::try_new(bounds, start, config)
+        }),
+    );
+}
+
+#[test]
+fn adapter() {
+    // One adapter per optimizer family, a quarter of the operations each.
+    let quarter = OPERATIONS / 4;
+    let runs = [
+        drive_adapter(11, quarter, |rng, bounds, limit| {
+            let d = CoordinateConfig::DEFAULT;
+            let config = CoordinateConfig {
+                initial_step: field(rng, d.initial_step),
+                max_evaluations: limit,
+                ..d
+            };
+            let start = point_in(rng, &bounds);
+            CoordinateSearch::<2>::try_new(bounds, start, config)
+        })
+        .map(|t| ("Adapter<CoordinateSearch<2>>", t)),
+        drive_adapter(12, quarter, |rng, bounds, limit| {
+            Sracos::<2>::try_new(bounds, sracos_config(rng, limit))
+        })
+        .map(|t| ("Adapter<Sracos<2>>", t)),
+        drive_adapter(13, quarter, |rng, bounds, limit| {
+            let mean = point_in(rng, &bounds);
+            Cmaes::<2, 6>::try_new(
+                bounds,
+                mean,
+                CmaesConfig {
+                    initial_sigma: field(rng, 0.3),
+                    max_evaluations: limit,
+                    ..CmaesConfig::DEFAULT
+                },
+            )
+        })
+        .map(|t| ("Adapter<Cmaes<2, 6>>", t)),
+        drive_adapter(14, quarter, |rng, bounds, limit| {
+            let start = point_in(rng, &bounds);
+            Rockstar::<2, 10>::try_new(
+                bounds,
+                start,
+                RockstarConfig {
+                    initial_sigma: field(rng, 0.1),
+                    max_evaluations: limit,
+                    ..RockstarConfig::DEFAULT
+                },
+            )
+        })
+        .map(|t| ("Adapter<Rockstar<2, 10>>", t)),
+    ];
+    let mut total = 0;
+    for run in runs {
+        match run {
+            Ok((name, tally)) => {
+                println!("{name}: {tally}");
+                assert!(tally.built > 0 && tally.accepted_tells > 0 && tally.refused_calls > 0);
+                assert!(tally.faulty_ticks > 0 && tally.failed_episodes > 0);
+                total += tally.operations;
+            }
+            Err(v) => panic!("adapter: {v}"),
+        }
+    }
+    assert!(total >= 4 * quarter);
+}
+
+/// A coordinate search with one deliberate defect, chosen by `bug`: 1, a candidate one ulp
+/// above the box on the 20th ask; 2, a refused tell (NaN) that still tells the search
+/// (after the 20th ask); 3, a best that ignores the costs told after the 10th evaluation.
+#[derive(Debug, Clone, PartialEq)]
+struct Planted {
+    inner: CoordinateSearch<N>,
+    bug: u8,
+    asks: u32,
+    stale_best: Option<Best<N>>,
+}
+
+impl Optimizer<N> for Planted {
+    fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
+        let mut theta = self.inner.ask(rng)?;
+        self.asks += 1;
+        if self.bug == 1 && self.asks == 20 {
+            theta[0] = self.inner.bounds().upper()[0].next_up();
+        }
+        Ok(theta)
+    }
+
+    fn tell(&mut self, cost: f32) -> Result<(), Error> {
+        if self.bug == 2 && cost.is_nan() && self.asks > 20 && self.inner.pending().is_some() {
+            // The defect: the rejected call clears the pending candidate.
+            let _ = self.inner.tell(1e30);
+            return Err(Error::NonFinite("cost"));
+        }
+        self.inner.tell(cost)?;
+        if self.bug == 3 && self.inner.evaluations() == 10 {
+            self.stale_best = self.inner.best();
+        }
+        Ok(())
+    }
+
+    fn best(&self) -> Option<Best<N>> {
+        self.stale_best.or(self.inner.best())
+    }
+
+    fn pending(&self) -> Option<&Vector<N>> {
+        self.inner.pending()
+    }
+
+    fn evaluations(&self) -> u32 {
+        self.inner.evaluations()
+    }
+
+    fn status(&self) -> Status {
+        self.inner.status()
+    }
+
+    fn bounds(&self) -> &Bounds<N> {
+        self.inner.bounds()
+    }
+}
+
+#[test]
+fn a_planted_bug_is_caught() {
+    let expected = ["outside", "refused tell", "best cost"];
+    for bug in 1..=3u8 {
+        let result = drive(21, 200_000, |rng, bounds, limit| {
+            let config = CoordinateConfig {
+                max_evaluations: limit,
+                ..CoordinateConfig::DEFAULT
+            };
+            Ok::<_, Error>(Planted {
+                inner: CoordinateSearch::try_new(bounds, point_in(rng, &bounds), config)?,
+                bug,
+                asks: 0,
+                stale_best: None,
+            })
+        });
+        match result {
+            Err(v) => {
+                println!("planted bug {bug} caught: {v}");
+                let what = expected[usize::from(bug) - 1];
+                assert!(
+                    v.message.contains(what),
+                    "bug {bug} caught as something else: {v}"
+                );
+            }
+            Ok(tally) => panic!("planted bug {bug} not caught: {tally}"),
+        }
+    }
+}
