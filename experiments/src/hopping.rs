@@ -5,8 +5,10 @@
 
 use ctrl_adapt::controller::AdapterError;
 use ctrl_adapt::cost::ApexConfig;
-use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, Optimizer, Status, Vector};
-use host_tests::hopper::NominalHopping;
+use ctrl_adapt::optimizer::{
+    Cmaes, CmaesConfig, Optimizer, Rockstar, RockstarConfig, Status, Vector,
+};
+use host_tests::hopper::{HopperConfig, NominalHopping};
 pub use host_tests::hopper_task::*;
 use rand_core::{RngCore, SeedableRng};
 
@@ -262,7 +264,7 @@ pub fn learn_with_validation<G: RngCore + Clone>(
     };
     let cma = learn_on_fresh_courses(cma, episodes, apex, rng, threads, |k, cma| {
         on_episode(k, cma);
-        if every > 0 && k % every == 0 {
+        if every > 0 && k.is_multiple_of(every) {
             score(k, cma);
         }
     })?;
@@ -299,4 +301,440 @@ pub fn theta_from_env<T: std::str::FromStr>() -> Option<Vec<T>> {
         .collect();
     assert_eq!(theta.len(), P, "CMAES_THETA needs {P} values");
     Some(theta)
+}
+
+// ROCK* on the hopping task, and robustness of a learned gait.
+
+/// Remembered rollouts of [`HopRockstar`]: M = 5n, the size the module docs of
+/// [`Rockstar`] recommend (the window of the authors' C++ code).
+pub const ROCK_MEMORY: usize = 5 * P;
+
+/// ROCK* (Hwangbo et al., Humanoids 2014) on the 31 hopping parameters.
+pub type HopRockstar = Rockstar<P, ROCK_MEMORY>;
+
+/// [`HopRockstar`] from `start` with σ₀ = `sigma0` (relative to each half-range of
+/// [`bounds`]) and a budget of `evaluations`; every other setting is
+/// [`RockstarConfig::DEFAULT`] (the paper's and the authors' code's defaults).
+pub fn rockstar(
+    start: Vector<P>,
+    sigma0: f32,
+    evaluations: u32,
+) -> Result<HopRockstar, ctrl_adapt::Error> {
+    Rockstar::try_new(bounds(), start, rockstar_config(sigma0, evaluations))
+}
+
+/// The configuration of [`rockstar`]: the defaults.
+pub fn rockstar_config(sigma0: f32, evaluations: u32) -> RockstarConfig {
+    RockstarConfig {
+        initial_sigma: sigma0,
+        max_evaluations: evaluations,
+        ..RockstarConfig::DEFAULT
+    }
+}
+
+/// ξ of [`noisy_rockstar_config`]: ≈ ζ^{0.1} for n = 31 (ζ = 1.3^{1/ln 33.5} ≈ 1.0776),
+/// against the default ζ^{0.3}.
+pub const NOISY_XI: f32 = 1.0075;
+
+/// [`rockstar_config`] for costs that change from rollout to rollout (a new course every
+/// episode): ξ = [`NOISY_XI`]. ROCK*'s step-size rule compares each rollout's cost with the
+/// previous one's, growing σ by ζ after one no worse and shrinking it by ζξ after a worse
+/// one. When the course-to-course noise decides the comparison (each way about half the
+/// time), ξ = ζ^a shrinks σ by a factor ζ^{a/2} per rollout on average: ≈ 1.1 % a rollout
+/// with the default a = 0.3, which took σ from 0.1 to 10⁻⁶ in ≈ 900 rollouts on the hopper
+/// (findings/hopping.md); a = 0.1 shrinks it three times slower.
+pub fn noisy_rockstar_config(sigma0: f32, evaluations: u32) -> RockstarConfig {
+    RockstarConfig {
+        xi: Some(NOISY_XI),
+        ..rockstar_config(sigma0, evaluations)
+    }
+}
+
+/// Random changes of one rollout: every parameter moved by a uniform draw in ± `theta` of its
+/// range (upper − lower bound of [`bounds`], the result clamped to the box), the leg's mass
+/// (thigh and shank masses and inertias) scaled by 1 + a uniform draw in ± `leg_mass`, the
+/// ground stiffness by 1 + a uniform draw in ± `ground_stiffness`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Perturbation {
+    /// Fraction of each parameter's range.
+    pub theta: f32,
+    /// Relative change of the leg's mass.
+    pub leg_mass: f64,
+    /// Relative change of the ground stiffness.
+    pub ground_stiffness: f64,
+}
+
+impl Perturbation {
+    /// No change: the nominal rollout.
+    pub const NONE: Self = Self {
+        theta: 0.0,
+        leg_mass: 0.0,
+        ground_stiffness: 0.0,
+    };
+}
+
+/// A uniform draw in [−1, 1).
+fn symmetric<G: RngCore>(rng: &mut G) -> f64 {
+    (rng.next_u64() >> 11) as f64 * (2.0 / (1u64 << 53) as f64) - 1.0
+}
+
+/// `theta` with every parameter moved by a uniform draw in ± `fraction` of its range, clamped
+/// to [`bounds`] (P draws from `rng`, whatever `fraction`).
+pub fn perturb_theta<G: RngCore>(theta: Vector<P>, fraction: f32, rng: &mut G) -> Vector<P> {
+    let b = bounds();
+    let (lo, up) = (*b.lower(), *b.upper());
+    Vector::<P>::from_fn(|i, _| {
+        let moved = theta[i] + symmetric(rng) as f32 * fraction * (up[i] - lo[i]);
+        moved.clamp(lo[i], up[i])
+    })
+}
+
+/// [`HopperConfig::SCARLETH`] with the leg's mass (thigh and shank masses and their
+/// inertias) scaled by `mass_scale` and the ground stiffness by `stiffness_scale`.
+pub fn scaled_leg(mass_scale: f64, stiffness_scale: f64) -> HopperConfig {
+    let c = HopperConfig::SCARLETH;
+    HopperConfig {
+        thigh_mass: c.thigh_mass * mass_scale,
+        shank_mass: c.shank_mass * mass_scale,
+        thigh_inertia: c.thigh_inertia * mass_scale,
+        shank_inertia: c.shank_inertia * mass_scale,
+        ground_stiffness: c.ground_stiffness * stiffness_scale,
+        ..c
+    }
+}
+
+/// One deployed episode (cost `apex`) of `theta` on the course of `seed`, on the leg
+/// [`scaled_leg`]`(mass_scale, stiffness_scale)`.
+pub fn episode_on_leg(
+    theta: Vector<P>,
+    seed: u64,
+    apex: ApexConfig,
+    mass_scale: f64,
+    stiffness_scale: f64,
+) -> Result<HopEpisode, AdapterError> {
+    let mut unused = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0);
+    evaluate_with(
+        theta,
+        &mut plant_for(scaled_leg(mass_scale, stiffness_scale), true, seed),
+        &mut unused,
+        false,
+        &NominalHopping::TUNED,
+        apex,
+    )
+}
+
+/// The cost a learning adapter tells (the episode's cost, or the failure cost) for one
+/// rollout of `theta` on the course of `seed` under a random draw of `perturbation` from
+/// `rng` (P + 2 draws, whatever the perturbation): what the robot meets when its gait
+/// parameters and its leg are not exactly the ones the policy was learned for.
+pub fn perturbed_told_cost<G: RngCore>(
+    theta: Vector<P>,
+    seed: u64,
+    apex: ApexConfig,
+    perturbation: Perturbation,
+    rng: &mut G,
+) -> Result<f32, AdapterError> {
+    let moved = perturb_theta(theta, perturbation.theta, rng);
+    let mass = 1.0 + perturbation.leg_mass * symmetric(rng);
+    let stiffness = 1.0 + perturbation.ground_stiffness * symmetric(rng);
+    let e = episode_on_leg(moved, seed, apex, mass, stiffness)?;
+    Ok(if e.report.failed {
+        adapter_config(1).failure_cost
+    } else {
+        e.report.cost
+    })
+}
+
+/// The mean [`perturbed_told_cost`] of `theta` over the [`VALIDATION_COURSES`], the
+/// perturbations drawn from a fixed seed (the same draws for every θ scored, so scores
+/// compare policies, not draws); with [`Perturbation::NONE`] it is [`validation_cost`].
+pub fn perturbed_validation_cost(
+    theta: Vector<P>,
+    apex: ApexConfig,
+    perturbation: Perturbation,
+) -> Result<f64, AdapterError> {
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0x5eed);
+    let mut total = 0.0;
+    for seed in VALIDATION_COURSES {
+        total += f64::from(perturbed_told_cost(
+            theta,
+            seed,
+            apex,
+            perturbation,
+            &mut rng,
+        )?);
+    }
+    Ok(total / VALIDATION_COURSES.count() as f64)
+}
+
+/// One scoring of a learner's deployable policy on the validation courses.
+#[derive(Debug, Clone)]
+pub struct Scored {
+    /// Learning episodes told so far.
+    pub episode: u32,
+    /// Rollouts so far: learning episodes plus the validation episodes of every scoring up to
+    /// and including this one (the robot runs those too).
+    pub rollouts: u32,
+    /// The deployable policy scored.
+    pub theta: Vector<P>,
+    /// Its [`perturbed_validation_cost`].
+    pub validation_cost: f64,
+}
+
+/// What [`learn_sequentially`] returns: every scoring, in order.
+#[derive(Debug, Clone)]
+pub struct Scores(pub Vec<Scored>);
+
+impl Scores {
+    /// The policy early stopping keeps within a budget of `episodes` learning episodes: the
+    /// scoring with the lowest validation cost among those after at most `episodes`.
+    pub fn kept(&self, episodes: u32) -> Option<&Scored> {
+        self.0
+            .iter()
+            .filter(|s| s.episode <= episodes)
+            .min_by(|a, b| a.validation_cost.total_cmp(&b.validation_cost))
+    }
+}
+
+/// Learns with `optimizer` for up to `episodes` episodes, one thread, episode k (from 0) on
+/// a new course (seed [`FRESH_COURSES`] + k, as [`learn_on_fresh_courses`]), each rollout
+/// under a random draw of `perturbation` from `perturbation_rng` ([`perturbed_told_cost`];
+/// [`Perturbation::NONE`] for the nominal task) and told its cost with `apex`. At the start,
+/// after every `every` episodes and at the end, `deploy(optimizer)` (e.g. ROCK*'s θ*, or
+/// CMA-ES's mean) is scored by [`perturbed_validation_cost`] with the same perturbation
+/// (early stopping: [`Scores::kept`]). When the optimizer stops (converged, or its own
+/// budget spent) with episodes left, `restart(optimizer, episodes left)` may hand a new one
+/// to continue with (e.g. a new search from the last θ*: a restart); with `None` learning
+/// ends there.
+#[allow(clippy::too_many_arguments)]
+pub fn learn_sequentially<O: Optimizer<P>, G: RngCore, H: RngCore>(
+    optimizer: &mut O,
+    deploy: impl Fn(&O) -> Vector<P>,
+    mut restart: impl FnMut(&O, u32) -> Option<O>,
+    episodes: u32,
+    apex: ApexConfig,
+    perturbation: Perturbation,
+    rng: &mut G,
+    perturbation_rng: &mut H,
+    every: u32,
+) -> Result<Scores, AdapterError> {
+    let per_scoring = VALIDATION_COURSES.count() as u32;
+    let mut scores = Vec::new();
+    let mut rollouts = 0;
+    let mut score = |k: u32, o: &O, rollouts: &mut u32| -> Result<(), AdapterError> {
+        let theta = deploy(o);
+        *rollouts += per_scoring;
+        scores.push(Scored {
+            episode: k,
+            rollouts: *rollouts,
+            theta,
+            validation_cost: perturbed_validation_cost(theta, apex, perturbation)?,
+        });
+        Ok(())
+    };
+    score(0, optimizer, &mut rollouts)?;
+    let mut k = 0u32;
+    while k < episodes {
+        if optimizer.status() != Status::Running {
+            match restart(optimizer, episodes - k) {
+                Some(o) => *optimizer = o,
+                None => break,
+            }
+        }
+        let theta = optimizer.ask(rng)?;
+        let cost = perturbed_told_cost(
+            theta,
+            FRESH_COURSES + u64::from(k),
+            apex,
+            perturbation,
+            perturbation_rng,
+        )?;
+        optimizer.tell(cost)?;
+        k += 1;
+        rollouts += 1;
+        if every > 0 && k.is_multiple_of(every) {
+            score(k, optimizer, &mut rollouts)?;
+        }
+    }
+    if every == 0 || !k.is_multiple_of(every) {
+        score(k, optimizer, &mut rollouts)?;
+    }
+    Ok(Scores(scores))
+}
+
+/// How a fixed policy stands up to small changes ([`robustness`]).
+#[derive(Debug, Clone)]
+pub struct Robustness {
+    /// The policy's own apex spreads (cm) on the [`UNSEEN_COURSES`], nominal leg.
+    pub nominal: Vec<f64>,
+    /// Whether the policy itself hops stably on every unseen course.
+    pub nominal_stable: bool,
+    /// Parameter perturbations run.
+    pub theta_runs: usize,
+    /// Of those, how many hopped stably with a spread ≤ 2× the policy's own on that course.
+    pub theta_passed: usize,
+    /// Of those, how many collapsed.
+    pub theta_collapsed: usize,
+    /// Of those, how many kept hopping but not stably (fewer than 15 hops, or the mean apex
+    /// more than 5 cm from the set height: another gait).
+    pub theta_off_gait: usize,
+    /// The largest spread ratio (perturbed / nominal, same course) among the runs that did
+    /// not collapse.
+    pub theta_worst_ratio: f64,
+    /// Leg variants (mass scale, stiffness scale), each run on every unseen course.
+    pub legs: Vec<LegResult>,
+}
+
+/// One leg variant of [`Robustness`].
+#[derive(Debug, Clone)]
+pub struct LegResult {
+    /// Leg mass scale.
+    pub mass: f64,
+    /// Ground stiffness scale.
+    pub stiffness: f64,
+    /// Spreads (cm) on the [`UNSEEN_COURSES`].
+    pub spreads: Vec<f64>,
+    /// Courses on which it hopped stably with a spread ≤ 2× the nominal one.
+    pub passed: usize,
+    /// Courses on which it collapsed.
+    pub collapsed: usize,
+    /// Courses on which it kept hopping but not stably (another gait).
+    pub off_gait: usize,
+}
+
+impl Robustness {
+    /// Runs of every leg variant that passed, and of all.
+    pub fn leg_passes(&self) -> (usize, usize) {
+        let passed = self.legs.iter().map(|l| l.passed).sum();
+        (passed, self.legs.len() * UNSEEN_COURSES.count())
+    }
+
+    /// The policy hops stably on every unseen course, and every parameter perturbation and
+    /// every leg run passed.
+    pub fn passes(&self) -> bool {
+        let (legs, all) = self.leg_passes();
+        self.nominal_stable && self.theta_passed == self.theta_runs && legs == all
+    }
+
+    /// One line: nominal spreads, then passes / collapses / other gaits of the parameter
+    /// perturbations and of the leg variants.
+    pub fn summary(&self) -> String {
+        let (legs, all) = self.leg_passes();
+        format!(
+            "nominal spreads {:.2?} cm (stable {}); every parameter ± 2 % of its range: {}/{} pass, \
+             {} collapse, {} off the gait, worst spread ratio {:.2}; leg mass and ground \
+             stiffness ± 10 %: {legs}/{all} pass, {} collapse, {} off the gait",
+            self.nominal,
+            self.nominal_stable,
+            self.theta_passed,
+            self.theta_runs,
+            self.theta_collapsed,
+            self.theta_off_gait,
+            self.theta_worst_ratio,
+            self.legs.iter().map(|l| l.collapsed).sum::<usize>(),
+            self.legs.iter().map(|l| l.off_gait).sum::<usize>(),
+        )
+    }
+}
+
+/// The acceptance check of a deployed gait: `theta` on the [`UNSEEN_COURSES`] (nominal), then
+/// `runs` draws of every parameter moved uniformly by ± 2 % of its range ([`perturb_theta`],
+/// RNG seed `seed`; draw j on unseen course j mod 5), then the legs with the mass and the
+/// ground stiffness at 0.9 and 1.1 of nominal, one at a time and the four corners (8
+/// variants × 5 courses). A run passes if it hops stably ([`HopEpisode::hops_stably`]: no
+/// collapse, ≥ 15 hops, mean apex within 5 cm of 0.6 m) with an apex spread ≤ 2× the one
+/// `theta` has on the same course, nominal leg.
+pub fn robustness(theta: Vector<P>, runs: usize, seed: u64) -> Result<Robustness, AdapterError> {
+    let apex = apex_config();
+    let courses: Vec<u64> = UNSEEN_COURSES.collect();
+    let own = courses
+        .iter()
+        .map(|&s| episode_on_leg(theta, s, apex, 1.0, 1.0))
+        .collect::<Result<Vec<_>, AdapterError>>()?;
+    let nominal: Vec<f64> = own.iter().map(|e| e.apex_spread() * 100.0).collect();
+    let nominal_stable = own.iter().all(HopEpisode::hops_stably);
+    let ok =
+        |e: &HopEpisode, nominal: f64| e.hops_stably() && e.apex_spread() * 100.0 <= 2.0 * nominal;
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    let (mut passed, mut collapsed, mut off_gait, mut worst) = (0, 0, 0, 0.0f64);
+    for j in 0..runs {
+        let moved = perturb_theta(theta, 0.02, &mut rng);
+        let c = j % courses.len();
+        let e = episode_on_leg(moved, courses[c], apex, 1.0, 1.0)?;
+        passed += usize::from(ok(&e, nominal[c]));
+        if e.collapsed {
+            collapsed += 1;
+        } else {
+            off_gait += usize::from(!e.hops_stably());
+            worst = worst.max(e.apex_spread() * 100.0 / nominal[c]);
+        }
+    }
+    let mut legs = Vec::new();
+    for (mass, stiffness) in [
+        (0.9, 1.0),
+        (1.1, 1.0),
+        (1.0, 0.9),
+        (1.0, 1.1),
+        (0.9, 0.9),
+        (0.9, 1.1),
+        (1.1, 0.9),
+        (1.1, 1.1),
+    ] {
+        let episodes = courses
+            .iter()
+            .map(|&s| episode_on_leg(theta, s, apex, mass, stiffness))
+            .collect::<Result<Vec<_>, _>>()?;
+        legs.push(LegResult {
+            mass,
+            stiffness,
+            spreads: episodes.iter().map(|e| e.apex_spread() * 100.0).collect(),
+            passed: episodes
+                .iter()
+                .zip(&nominal)
+                .filter(|(e, n)| ok(e, **n))
+                .count(),
+            collapsed: episodes.iter().filter(|e| e.collapsed).count(),
+            off_gait: episodes
+                .iter()
+                .filter(|e| !e.collapsed && !e.hops_stably())
+                .count(),
+        });
+    }
+    Ok(Robustness {
+        nominal,
+        nominal_stable,
+        theta_runs: runs,
+        theta_passed: passed,
+        theta_collapsed: collapsed,
+        theta_off_gait: off_gait,
+        theta_worst_ratio: worst,
+        legs,
+    })
+}
+
+/// `run(seed)` for every seed of `seeds`, on [`threads`] threads (each run on one thread, so
+/// a run's result does not depend on the number of threads), results in the order of `seeds`.
+pub fn map_seeds<T: Send>(seeds: &[u64], run: impl Fn(u64) -> T + Sync) -> Vec<T> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut results: Vec<(usize, T)> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads().min(seeds.len()).max(1))
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut done = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(&seed) = seeds.get(i) else { break };
+                        done.push((i, run(seed)));
+                    }
+                    done
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().expect("a run panicked"))
+            .collect()
+    });
+    results.sort_by_key(|(i, _)| *i);
+    results.into_iter().map(|(_, r)| r).collect()
 }
