@@ -363,13 +363,20 @@ pub enum KillPoint {
         /// The operation torn.
         op: u64,
     },
+    /// Just after the save that ends `episode` (its Report received).
+    AfterSave {
+        /// The episode.
+        episode: u16,
+    },
 }
 
 impl KillPoint {
     /// The episode it interrupts.
     pub fn episode(&self) -> u16 {
         match *self {
-            Self::MidEpisode { episode, .. } | Self::MidSave { episode, .. } => episode,
+            Self::MidEpisode { episode, .. }
+            | Self::MidSave { episode, .. }
+            | Self::AfterSave { episode } => episode,
         }
     }
 }
@@ -471,7 +478,7 @@ pub fn run_persistent(
     let mut save_ops = vec![0u64; episodes];
     let mut pending: VecDeque<KillPoint> = {
         let mut k = kills.to_vec();
-        k.sort_by_key(|k| (k.episode(), matches!(k, KillPoint::MidSave { .. })));
+        k.sort_by_key(|k| (k.episode(), !matches!(k, KillPoint::MidEpisode { .. })));
         k.into()
     };
     let mut outcomes: Vec<KillOutcome> = Vec::new();
@@ -561,9 +568,10 @@ pub fn run_persistent(
             let ops_before = lock(shared).image.ops();
             let cut_op = match pending.front() {
                 Some(&KillPoint::MidSave { episode: e, op }) if e == episode => Some(op.max(1)),
+                Some(&KillPoint::AfterSave { episode: e }) if e == episode => Some(u64::MAX),
                 _ => None,
             };
-            lock(shared).cut_at = cut_op.map(|op| ops_before + op - 1);
+            lock(shared).cut_at = cut_op.map(|op| ops_before.saturating_add(op - 1));
             let report = exchange(
                 &mut link,
                 &Frame::new(Kind::End, episode, 0),

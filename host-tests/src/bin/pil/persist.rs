@@ -60,44 +60,48 @@ fn initial_image(
     Ok(Some((image.bytes().to_vec(), state)))
 }
 
-/// `k` seeded kill points (alternately mid-episode and mid-save) plus two fixed ones: the
-/// last flash operation of a save (its commit) torn, and a kill just after a save.
+/// The kill points: two fixed kinds early in the run, where the flash is laid out as in the
+/// uninterrupted run (no restart before them): the save's last flash operation torn (part of
+/// its commit) at a seeded episode in 1..=10, and a kill just after the save of a later one;
+/// then `k` seeded points over the rest of the run, alternately mid-episode (a seeded tick)
+/// and mid-save (a seeded operation of that save; its count in the uninterrupted run).
 fn kill_plan(k: u32, seed: u64, episodes: u16, ticks: u16, save_ops: &[u64]) -> Vec<KillPoint> {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
     let mut draw = |n: u64| rng.next_u64() % n.max(1);
-    let mut used = std::collections::BTreeSet::new();
     let mut kills = Vec::new();
-    let mut episode_free = |draw: &mut dyn FnMut(u64) -> u64| loop {
-        let e = draw(u64::from(episodes)) as u16;
-        if used.insert(e) {
-            return e;
-        }
-    };
-    for i in 0..k.min(u32::from(episodes).saturating_sub(2)) {
-        let episode = episode_free(&mut draw);
+    if episodes < 24 {
+        return kills;
+    }
+    let commit = 1 + draw(10) as u16;
+    kills.push(KillPoint::MidSave {
+        episode: commit,
+        op: save_ops[usize::from(commit)],
+    });
+    let after = commit + 1 + draw(10) as u16;
+    kills.push(KillPoint::AfterSave { episode: after });
+    let first = after + 1;
+    let mut used = std::collections::BTreeSet::new();
+    let span = u64::from(episodes - first);
+    for i in 0..u64::from(k).min(span) {
+        let episode = loop {
+            let e = first + draw(span) as u16;
+            if used.insert(e) {
+                break e;
+            }
+        };
         kills.push(if i % 2 == 0 {
             KillPoint::MidEpisode {
                 episode,
                 tick: draw(u64::from(ticks)) as u16,
             }
         } else {
-            let ops = save_ops[usize::from(episode)];
             KillPoint::MidSave {
                 episode,
-                op: 1 + draw(ops),
+                op: 1 + draw(save_ops[usize::from(episode)]),
             }
         });
     }
-    // The commit (the save's last operation) torn, and a kill after a completed save.
-    for last in [true, false] {
-        let episode = episode_free(&mut draw);
-        let ops = save_ops[usize::from(episode)];
-        kills.push(KillPoint::MidSave {
-            episode,
-            op: if last { ops } else { ops + 1 },
-        });
-    }
-    kills.sort_by_key(|k| (k.episode(), matches!(k, KillPoint::MidSave { .. })));
+    kills.sort_by_key(|k| (k.episode(), !matches!(k, KillPoint::MidEpisode { .. })));
     kills
 }
 
@@ -259,7 +263,7 @@ fn persist_in(
     );
     let killed = run(args, elf, dir, initial.as_deref(), config, &kills, false)?;
     println!(
-        "{:>26}  {:>30}  {:>10}",
+        "{:>26}  {:>50}  {:>10}",
         "kill point", "what was lost", "resumed at"
     );
     for k in &killed.run.kills {
@@ -268,18 +272,22 @@ fn persist_in(
                 format!("episode {episode}, tick {tick}"),
                 "the episode".to_string(),
             ),
-            KillPoint::MidSave { episode, op } if k.torn => (
+            KillPoint::MidSave { episode, op } => (
                 format!("save {episode}, flash op {op}"),
-                format!(
-                    "the save (op {op} of {} torn)",
-                    plain.run.save_ops[usize::from(episode)]
-                ),
+                if k.torn {
+                    format!(
+                        "the save (op {op} torn; {} ops in the uninterrupted run)",
+                        plain.run.save_ops[usize::from(episode)]
+                    )
+                } else {
+                    format!("nothing (the save had {} ops)", k.ops_done)
+                },
             ),
-            KillPoint::MidSave { episode, .. } => {
+            KillPoint::AfterSave { episode } => {
                 (format!("after save {episode}"), "nothing".to_string())
             }
         };
-        println!("{point:>26}  {lost:>30}  {:>10}", k.resumed_at);
+        println!("{point:>26}  {lost:>50}  {:>10}", k.resumed_at);
     }
     println!(
         "{} boots, {} episodes run for {} ({} rerun) in {:.1} s",
