@@ -87,7 +87,7 @@ impl FlashImage {
 
     fn range(&self, offset: u32, len: u32, align: u32) -> Option<std::ops::Range<usize>> {
         let end = offset.checked_add(len)?;
-        (end <= FLASH_SIZE && offset % align == 0 && len % align == 0)
+        (end <= FLASH_SIZE && offset.is_multiple_of(align) && len.is_multiple_of(align))
             .then_some(offset as usize..end as usize)
     }
 

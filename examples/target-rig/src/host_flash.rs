@@ -88,7 +88,7 @@ fn check(offset: u32, len: usize, align: u32) -> Result<u32, HostFlashError> {
     if offset.checked_add(len).is_none_or(|end| end > FLASH_SIZE) {
         return Err(HostFlashError::OutOfBounds);
     }
-    if offset % align != 0 || len % align != 0 {
+    if !offset.is_multiple_of(align) || !len.is_multiple_of(align) {
         return Err(HostFlashError::NotAligned);
     }
     Ok(len)
