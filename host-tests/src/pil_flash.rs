@@ -196,6 +196,10 @@ pub struct Shared {
     pub image: FlashImage,
     /// Tear the program or erase that finds [`FlashImage::ops`] equal to this, then stop.
     pub cut_at: Option<u64>,
+    /// Tear the next erase, whenever it comes.
+    pub cut_erase: bool,
+    /// The operation torn last: `b'W'` (a program) or `b'E'` (an erase).
+    pub torn: Option<u8>,
 }
 
 /// Locks `shared`, poisoned or not (a panicking server thread leaves the image consistent:
@@ -322,7 +326,10 @@ fn serve(
                     requests.read_exact(&mut data)?;
                 }
                 let mut s = lock(shared);
-                let torn = s.cut_at == Some(s.image.ops());
+                let torn = s.cut_at == Some(s.image.ops()) || (op == b'E' && s.cut_erase);
+                if torn {
+                    s.torn = Some(op);
+                }
                 let done = if op == b'W' {
                     s.image.program(a, &data, torn)?
                 } else {
@@ -368,6 +375,12 @@ pub enum KillPoint {
         /// The episode.
         episode: u16,
     },
+    /// At the first page erase of the saves from the one that ends `episode` on (the
+    /// erase is torn: half of the page's bytes erased).
+    NextErase {
+        /// The first episode whose save may be cut.
+        episode: u16,
+    },
 }
 
 impl KillPoint {
@@ -376,7 +389,8 @@ impl KillPoint {
         match *self {
             Self::MidEpisode { episode, .. }
             | Self::MidSave { episode, .. }
-            | Self::AfterSave { episode } => episode,
+            | Self::AfterSave { episode }
+            | Self::NextErase { episode } => episode,
         }
     }
 }
@@ -388,6 +402,8 @@ pub struct KillOutcome {
     pub point: KillPoint,
     /// Whether a flash operation was torn (a [`KillPoint::MidSave`] within the save).
     pub torn: bool,
+    /// Whether that operation was an erase (else a program).
+    pub torn_erase: bool,
     /// Flash programs and erases of that save before the torn one (or in all, if none).
     pub ops_done: u64,
     /// The episode the restarted firmware said it would go on from.
@@ -557,6 +573,7 @@ pub fn run_persistent(
                     outcomes.push(KillOutcome {
                         point: pending.pop_front().expect("front checked"),
                         torn: false,
+                        torn_erase: false,
                         ops_done: 0,
                         resumed_at: u16::MAX,
                         expected: episode,
@@ -571,7 +588,12 @@ pub fn run_persistent(
                 Some(&KillPoint::AfterSave { episode: e }) if e == episode => Some(u64::MAX),
                 _ => None,
             };
+            let cut_erase = matches!(
+                pending.front(),
+                Some(&KillPoint::NextErase { episode: e }) if e <= episode
+            );
             lock(shared).cut_at = cut_op.map(|op| ops_before.saturating_add(op - 1));
+            lock(shared).cut_erase = cut_erase;
             let report = exchange(
                 &mut link,
                 &Frame::new(Kind::End, episode, 0),
@@ -581,13 +603,16 @@ pub fn run_persistent(
             )?;
             let ops_done = lock(shared).image.ops() - ops_before;
             lock(shared).cut_at = None;
+            lock(shared).cut_erase = false;
             let Some(report) = report else {
                 // Torn: the save is lost, the firmware goes on from this episode.
                 qemu.kill();
                 server.finish()?;
+                let torn_erase = lock(shared).torn.take() == Some(b'E');
                 outcomes.push(KillOutcome {
                     point: pending.pop_front().expect("a cut is armed only for a kill"),
                     torn: true,
+                    torn_erase,
                     ops_done: ops_done.saturating_sub(1),
                     resumed_at: u16::MAX,
                     expected: episode,
@@ -605,6 +630,7 @@ pub fn run_persistent(
                 outcomes.push(KillOutcome {
                     point: pending.pop_front().expect("a cut is armed only for a kill"),
                     torn: false,
+                    torn_erase: false,
                     ops_done,
                     resumed_at: u16::MAX,
                     expected: episode + 1,

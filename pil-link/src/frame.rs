@@ -320,7 +320,7 @@ mod tests {
     #[test]
     fn round_trip_all_kinds_and_lengths() {
         let mut reader = FrameReader::new();
-        for (k, kind) in (1..=8).filter_map(Kind::from_u8).enumerate() {
+        for (k, kind) in (1..=10).filter_map(Kind::from_u8).enumerate() {
             for count in 0..=MAX_VALUES {
                 let values: Vec<f32> = (0..count)
                     .map(|i| match i % 5 {

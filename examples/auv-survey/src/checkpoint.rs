@@ -219,3 +219,122 @@ where
         self.state.next_episode
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coordinate_search;
+    use ctrl_adapt::record;
+    use embedded_storage_async::nor_flash::{ErrorType, NorFlashErrorKind, ReadNorFlash};
+    use pil_link::Learner;
+
+    /// A NOR flash in memory with the firmware's layout.
+    struct RamFlash(Vec<u8>);
+
+    #[derive(Debug)]
+    struct Bad;
+
+    impl embedded_storage_async::nor_flash::NorFlashError for Bad {
+        fn kind(&self) -> NorFlashErrorKind {
+            NorFlashErrorKind::OutOfBounds
+        }
+    }
+
+    impl ErrorType for &mut RamFlash {
+        type Error = Bad;
+    }
+
+    impl ReadNorFlash for &mut RamFlash {
+        const READ_SIZE: usize = 1;
+        async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Bad> {
+            let o = offset as usize;
+            bytes.copy_from_slice(self.0.get(o..o + bytes.len()).ok_or(Bad)?);
+            Ok(())
+        }
+        fn capacity(&self) -> usize {
+            self.0.len()
+        }
+    }
+
+    impl NorFlash for &mut RamFlash {
+        const WRITE_SIZE: usize = 4;
+        const ERASE_SIZE: usize = PAGE as usize;
+        async fn erase(&mut self, from: u32, to: u32) -> Result<(), Bad> {
+            self.0
+                .get_mut(from as usize..to as usize)
+                .ok_or(Bad)?
+                .fill(0xFF);
+            Ok(())
+        }
+        async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Bad> {
+            let o = offset as usize;
+            let to = self.0.get_mut(o..o + bytes.len()).ok_or(Bad)?;
+            to.iter_mut().zip(bytes).for_each(|(t, b)| *t &= b);
+            Ok(())
+        }
+    }
+
+    fn fresh() -> AuvCheckpoint<CoordinateSearch<P>> {
+        AuvCheckpoint::fresh(
+            AuvLearner::try_new(coordinate_search(u32::MAX).unwrap(), u32::MAX, 1).unwrap(),
+        )
+    }
+
+    fn episode(l: &mut impl Learner, e: u16) -> Values {
+        let mut theta = Values::new();
+        l.start_episode(e, &[], &mut theta);
+        let mut action = Values::new();
+        for k in 0..5 {
+            l.act(&[-5.0 + k as f32, -2.0, 4.8, 0.1, 0.0, 0.0], &mut action);
+        }
+        let mut report = Values::new();
+        l.end_episode(&mut report);
+        theta
+    }
+
+    /// Checks: a learner booted from the flash after 3 saved episodes says episode 3, holds
+    /// the very state of the one that ran them, and draws the same next θ; erased flash
+    /// boots fresh at episode 0.
+    #[test]
+    fn a_rebooted_learner_resumes_where_it_saved() {
+        let mut flash = RamFlash(vec![0xFF; FLASH_SIZE as usize]);
+        let store = CheckpointStore::try_new(&mut flash, SLOTS).unwrap();
+        let (mut first, loaded) = Persisting::boot(store, fresh).unwrap();
+        assert!(!loaded);
+        assert_eq!(first.next_episode(), 0);
+        for e in 0..3 {
+            episode(&mut first, e);
+        }
+        assert_eq!(first.stats().saved, 3);
+        let mut before = [0u8; RECORD];
+        let before = record::save(first.state(), &mut before).unwrap().to_vec();
+        let next = episode(&mut first.state().learner.clone(), 3);
+        drop(first);
+
+        let store = CheckpointStore::try_new(&mut flash, SLOTS).unwrap();
+        let (mut second, loaded) = Persisting::boot(store, fresh).unwrap();
+        assert!(loaded);
+        assert_eq!(second.next_episode(), 3);
+        let mut after = [0u8; RECORD];
+        assert_eq!(
+            record::save(second.state(), &mut after).unwrap(),
+            &before[..]
+        );
+        assert_eq!(episode(&mut second, 3), next);
+    }
+
+    /// Checks: the hand-over starts the coordinate search at θ₀ (the first θ asked) and its
+    /// record loads back as the same type.
+    #[test]
+    fn handoff_starts_the_local_phase_at_theta0() {
+        let theta0 = Vector::<P>::from_fn(|i, _| 0.05 * i as f32 - 0.4);
+        let mut h = handoff(theta0, 1).unwrap();
+        let mut buf = [0u8; RECORD];
+        let bytes = record::save(&h, &mut buf).unwrap().to_vec();
+        let mut loaded: AuvCheckpoint<CoordinateSearch<P>> = record::load(&bytes).unwrap();
+        assert_eq!(loaded.next_episode, 0);
+        let (a, b) = (episode(&mut h.learner, 0), episode(&mut loaded.learner, 0));
+        assert_eq!(a, b);
+        assert_eq!(a.as_slice(), theta0.as_slice());
+    }
+}
