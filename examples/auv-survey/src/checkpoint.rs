@@ -309,7 +309,7 @@ mod tests {
         let mut before = [0u8; RECORD];
         let before = record::save(first.state(), &mut before).unwrap().to_vec();
         let next = episode(&mut first.state().learner.clone(), 3);
-        drop(first);
+        // `first` borrows the flash: its last use is above.
 
         let store = CheckpointStore::try_new(&mut flash, SLOTS).unwrap();
         let (mut second, loaded) = Persisting::boot(store, fresh).unwrap();
