@@ -17,7 +17,7 @@ use ctrl_adapt::optimizer::{CoordinateSearch, Vector};
 use ctrl_adapt::record;
 use host_tests::pil::{EpisodeRecord, RunConfig};
 use host_tests::pil_flash::{
-    FlashImage, ImageFlash, KillPoint, PersistentRun, Shared, lock, make_pipes, run_persistent,
+    FlashImage, ImageFlash, KillPoint, PersistentRun, Shared, make_pipes, run_persistent,
 };
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -181,7 +181,6 @@ fn run(
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
         .image;
-    let _ = lock;
     Ok(Run {
         run,
         image,
