@@ -88,7 +88,7 @@
 //!   share of learning runs that reach the paper's apex variation (4 of 16 seeds, against 2
 //!   of 8 without).
 //! * **Ties** in the ranking rank in the order told.
-//! * **Normal draws.** Marsaglia's polar method in f32 ([`normal_pair_f32`](crate::optimizer::normal_pair_f32)), truncated at
+//! * **Normal draws.** Marsaglia's polar method in f32 ([`normal_pair_f32`]), truncated at
 //!   radius 7.99.
 //!
 //! # Not (yet) in the panic-freedom proof
