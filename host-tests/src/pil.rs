@@ -274,6 +274,9 @@ impl Qemu {
             .status()
             .is_ok_and(|s| s.success());
         let mut qemu = Command::new("qemu-system-arm");
+        // The ELF's path must survive the change of working directory.
+        let elf = &std::fs::canonicalize(elf)
+            .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", elf.display())))?;
         if let Some(cwd) = cwd {
             qemu.current_dir(cwd);
         }

@@ -322,6 +322,9 @@ fn serve(
             op @ (b'W' | b'E') => {
                 let mut data = Vec::new();
                 if op == b'W' {
+                    if b > FLASH_SIZE {
+                        return Err(io::Error::other(format!("flash write too long: {b} B")));
+                    }
                     data = vec![0u8; b as usize];
                     requests.read_exact(&mut data)?;
                 }
