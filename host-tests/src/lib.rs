@@ -19,6 +19,7 @@ pub mod hopper;
 pub mod hopper_task;
 pub mod hopper_tuning;
 pub mod pil;
+pub mod pil_flash;
 pub mod plots;
 pub mod reaching;
 pub mod rhythmic;

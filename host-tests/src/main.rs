@@ -10,7 +10,10 @@
 //! AUV: the bare PD in the "real" 0.6 m/s current; the global phase (CRS, 100 initial
 //! samples, 300 episodes) in the "simulator" 0.5 m/s current; the local phase (coordinate
 //! search from the global best, 150 episodes: the paper's hour) in the real current. Prints a
-//! summary and writes learning curves and x–z trajectories as SVG.
+//! summary and writes learning curves and x–z trajectories as SVG, and the hand-over to the
+//! robot: `auv-handoff.ckpt`, a checkpoint record of the local phase (coordinate search from
+//! the global phase's best) that the persistent PIL firmware starts from
+//! (`cargo run --release -p host-tests --bin pil -- --persist --handoff FILE`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -96,6 +99,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 const GLOBAL_BUDGET: u32 = 300;
+/// The global phase's result for the robot, in the output directory.
+const HANDOFF_FILE: &str = "auv-handoff.ckpt";
 const LOCAL_BUDGET: u32 = 150;
 
 fn auv_demo(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
@@ -200,6 +205,21 @@ fn auv_demo(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
         best(&local)
     );
     println!("learned W = {:.3?}", learned.as_slice());
+
+    // The hand-over to the robot: the local phase from the global phase's best, as the
+    // persistent PIL firmware keeps it on flash (a checkpoint record).
+    let handoff = auv_survey::checkpoint::handoff(phase1, auv_survey::SEED)?;
+    let mut buf = [0u8; auv_survey::checkpoint::RECORD];
+    let record = ctrl_adapt::record::save(&handoff, &mut buf)?;
+    let handoff_path = o.out.join(HANDOFF_FILE);
+    std::fs::write(&handoff_path, &record)?;
+    println!(
+        "hand-over: the local phase from the global best, {} B checkpoint in {} \
+         (cargo run --release -p host-tests --bin pil -- --persist --handoff {})",
+        record.len(),
+        handoff_path.display(),
+        handoff_path.display()
+    );
 
     let values = |v: &[auv_task::AuvEpisode]| -> Vec<f64> {
         v.iter().map(|e| f64::from(e.reward())).collect()

@@ -246,13 +246,24 @@ impl Qemu {
     /// log (semihosting stdout) goes through `defmt-print -e elf` into `log` if defmt-print
     /// is installed, raw (undecoded) otherwise.
     pub fn start(elf: &Path, log: &Path) -> io::Result<(Self, SocketLink)> {
+        std::fs::File::create(log)?;
+        Self::start_in(elf, log, None)
+    }
+
+    /// [`Qemu::start`] with QEMU's working directory `cwd` (where the firmware's semihosting
+    /// opens files by relative name), if given; the log is appended to `log` (a restarted
+    /// firmware's log follows the one before).
+    pub fn start_in(elf: &Path, log: &Path, cwd: Option<&Path>) -> io::Result<(Self, SocketLink)> {
         let dir = std::env::temp_dir().join(format!("ctrl-adapt-pil-{}", std::process::id()));
         std::fs::create_dir_all(&dir)?;
         let socket = dir.join("uart0.sock");
         let _ = std::fs::remove_file(&socket);
         let listener = UnixListener::bind(&socket)?;
         listener.set_nonblocking(true)?;
-        let log_file = std::fs::File::create(log)?;
+        let log_file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(log)?;
         // The firmware's log (semihosting stdout) is decoded by defmt-print into `log`, or
         // written there raw when defmt-print is not installed (QEMU's stdout must never be a
         // closed pipe: the firmware would see its log writes fail).
@@ -262,7 +273,14 @@ impl Qemu {
             .stderr(Stdio::null())
             .status()
             .is_ok_and(|s| s.success());
-        let mut child = Command::new("qemu-system-arm")
+        let mut qemu = Command::new("qemu-system-arm");
+        // The ELF's path must survive the change of working directory.
+        let elf = &std::fs::canonicalize(elf)
+            .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", elf.display())))?;
+        if let Some(cwd) = cwd {
+            qemu.current_dir(cwd);
+        }
+        let mut child = qemu
             .args(["-cpu", "cortex-m4", "-machine", "mps2-an386"])
             .args(["-display", "none", "-monitor", "none"])
             .args(["-semihosting-config", "enable=on,target=native"])
@@ -335,9 +353,14 @@ impl Qemu {
         }
     }
 
-    fn kill(&mut self) {
+    /// Kills QEMU at once (SIGKILL): the emulated processor stops at whatever instruction
+    /// it was running, as at a power cut.
+    pub fn kill(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        if let Some(d) = self.decoder.as_mut() {
+            let _ = d.wait();
+        }
     }
 }
 

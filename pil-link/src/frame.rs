@@ -66,6 +66,12 @@ pub enum Kind {
     Shutdown = 7,
     /// Firmware → host: stopping (answer to Shutdown).
     Bye = 8,
+    /// Host → firmware: where does the learner stand? Sent after a (re)boot of a firmware
+    /// that keeps its learning state on flash.
+    Hello = 9,
+    /// Firmware → host: the answer to Hello; `episode`: the next episode the learner expects
+    /// (0 on a fresh start, one past the last episode whose end it saved otherwise).
+    Resume = 10,
 }
 
 impl Kind {
@@ -79,6 +85,8 @@ impl Kind {
             6 => Self::Report,
             7 => Self::Shutdown,
             8 => Self::Bye,
+            9 => Self::Hello,
+            10 => Self::Resume,
             _ => return None,
         })
     }
@@ -312,7 +320,7 @@ mod tests {
     #[test]
     fn round_trip_all_kinds_and_lengths() {
         let mut reader = FrameReader::new();
-        for (k, kind) in (1..=8).filter_map(Kind::from_u8).enumerate() {
+        for (k, kind) in (1..=10).filter_map(Kind::from_u8).enumerate() {
             for count in 0..=MAX_VALUES {
                 let values: Vec<f32> = (0..count)
                     .map(|i| match i % 5 {

@@ -30,6 +30,9 @@
 //!                      ◄──────────────── Report {episode, tick: fallbacks, values: the report}
 //! Shutdown ────────────────────────────► Bye, firmware exits
 //! ```
+//! A firmware that keeps its learner on flash may be rebooted at any point (a power cut);
+//! the host then asks where it stands, `Hello` ──► `Resume {episode}` (the next episode the
+//! learner expects: 0 on a fresh start), and goes on from that episode.
 //! The host sends a frame only after the answer to the previous one, so the firmware's
 //! deadline per tick is the only timer on the target. Control frames (Start, End, Shutdown)
 //! are idempotent and the host repeats them if no answer comes; the firmware answers a

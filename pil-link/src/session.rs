@@ -30,6 +30,12 @@ pub trait Learner {
     /// The episode is over: report its cost to the optimizer (`tell`) and write what the host
     /// should log into `report`.
     fn end_episode(&mut self, report: &mut Values);
+
+    /// The next episode this learner expects, for the answer to a Hello: 0 unless it resumed
+    /// from a checkpoint (then one past the last episode whose end it saved).
+    fn next_episode(&self) -> u16 {
+        0
+    }
 }
 
 /// Counters of link events since the session began.
@@ -144,6 +150,9 @@ impl<C: Learner> Session<C> {
                 Some(Frame::new(Kind::Bye, frame.episode, 0))
             }
             (_, Phase::Finished) => None,
+            // Where the learner stands (a firmware that resumed from flash says so); answered
+            // in any phase, and changes nothing.
+            (Kind::Hello, _) => Some(Frame::new(Kind::Resume, self.controller.next_episode(), 0)),
             // A repeated Start (its Started was lost): the same answer, no new ask.
             (Kind::Start, Phase::Running { started, .. }) if started.episode == frame.episode => {
                 Some(started.clone())
@@ -298,6 +307,9 @@ mod tests {
         assert_eq!(s.on_frame(&Frame::new(Kind::End, 1, 0)), Some(report));
         assert_eq!((s.controller().starts, s.controller().ends), (1, 1));
         assert_eq!(s.on_frame(&Frame::new(Kind::End, 2, 0)), None);
+        let resume = s.on_frame(&Frame::new(Kind::Hello, 0, 0)).unwrap();
+        assert_eq!((resume.kind, resume.episode), (Kind::Resume, 0));
+        assert_eq!((s.controller().starts, s.controller().ends), (1, 1));
         let bye = s.on_frame(&Frame::new(Kind::Shutdown, 0, 0)).unwrap();
         assert_eq!(bye.kind, Kind::Bye);
         assert!(s.finished());

@@ -44,8 +44,8 @@ use ctrl_adapt::optimizer::{
     Optimizer, Sracos, SracosConfig, Weighting,
 };
 use ctrl_adapt::{Bounds, Error, Vector};
-use rand_core::SeedableRng;
-use rand_xoshiro::Xoshiro128PlusPlus;
+use rand_core::{RngCore, SeedableRng};
+use rand_xoshiro::SplitMix64;
 
 use pil_link::{Values, mode_code, mode_from_code};
 
@@ -259,11 +259,74 @@ fn write_vector<const K: usize>(v: &Vector<K>, out: &mut Values) {
     }
 }
 
+/// The learner's RNG: xoshiro128++, the very stream of `rand_xoshiro::Xoshiro128PlusPlus`
+/// (seeded the same way), with a state that the `serde` feature saves (`rand_xoshiro`'s own
+/// `serde` feature needs `std`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct AuvRng {
+    s: [u32; 4],
+}
+
+impl AuvRng {
+    /// The generator `Xoshiro128PlusPlus::seed_from_u64(seed)` is: its 16-byte seed drawn
+    /// from SplitMix64.
+    pub fn seed_from_u64(seed: u64) -> Self {
+        let mut bytes = [0u8; 16];
+        SplitMix64::seed_from_u64(seed).fill_bytes(&mut bytes);
+        let word = |i: usize| {
+            u32::from_le_bytes([
+                bytes[4 * i],
+                bytes[4 * i + 1],
+                bytes[4 * i + 2],
+                bytes[4 * i + 3],
+            ])
+        };
+        let s = [word(0), word(1), word(2), word(3)];
+        if s == [0; 4] {
+            // As xoshiro does for the all-zero seed (never the case for SplitMix64's output
+            // of a u64 seed in practice).
+            return Self::seed_from_u64(0);
+        }
+        Self { s }
+    }
+}
+
+impl RngCore for AuvRng {
+    fn next_u32(&mut self) -> u32 {
+        let s = &mut self.s;
+        let result = s[0].wrapping_add(s[3]).rotate_left(7).wrapping_add(s[0]);
+        let t = s[1] << 9;
+        s[2] ^= s[0];
+        s[3] ^= s[1];
+        s[1] ^= s[2];
+        s[0] ^= s[3];
+        s[2] ^= t;
+        s[3] = s[3].rotate_left(11);
+        result
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        rand_core::impls::next_u64_via_u32(self)
+    }
+
+    fn fill_bytes(&mut self, dest: &mut [u8]) {
+        rand_core::impls::fill_bytes_via_next(self, dest);
+    }
+}
+
 /// The AUV adapter with its RNG, as the PIL firmware runs it (see the [module docs](self)).
+/// With the `serde` feature its adapter and RNG are saved (the last episode's report is not).
 #[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(bound = "O: serde::Serialize + serde::de::DeserializeOwned")
+)]
 pub struct AuvLearner<O> {
     adapter: AuvAdapter<O>,
-    rng: Xoshiro128PlusPlus,
+    rng: AuvRng,
+    #[cfg_attr(feature = "serde", serde(skip))]
     last: Option<EpisodeReport<P>>,
 }
 
@@ -273,9 +336,18 @@ impl<O: Optimizer<P>> AuvLearner<O> {
     pub fn try_new(optimizer: O, learning_episodes: u32, seed: u64) -> Result<Self, Error> {
         Ok(Self {
             adapter: adapter(optimizer, learning_episodes)?,
-            rng: Xoshiro128PlusPlus::seed_from_u64(seed),
+            rng: AuvRng::seed_from_u64(seed),
             last: None,
         })
+    }
+
+    /// The learner over `adapter`, its RNG seeded with `seed`.
+    pub fn from_adapter(adapter: AuvAdapter<O>, seed: u64) -> Self {
+        Self {
+            adapter,
+            rng: AuvRng::seed_from_u64(seed),
+            last: None,
+        }
     }
 
     /// The adapter.
@@ -359,9 +431,31 @@ impl<O: Optimizer<P>> pil_link::Learner for AuvLearner<O> {
     }
 }
 
+#[cfg(feature = "serde")]
+pub mod checkpoint;
+#[cfg(feature = "serde")]
+pub use checkpoint::AuvCheckpoint;
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Checks: the learner's RNG draws exactly `rand_xoshiro::Xoshiro128PlusPlus`'s stream.
+    #[test]
+    fn auv_rng_is_xoshiro128plusplus() {
+        for seed in [0, 1, 2, 0xDEAD_BEEF, u64::MAX] {
+            let mut ours = AuvRng::seed_from_u64(seed);
+            let mut theirs = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(seed);
+            for _ in 0..1000 {
+                assert_eq!(ours.next_u32(), theirs.next_u32());
+            }
+            assert_eq!(ours.next_u64(), theirs.next_u64());
+            let (mut a, mut b) = ([0u8; 13], [0u8; 13]);
+            ours.fill_bytes(&mut a);
+            theirs.fill_bytes(&mut b);
+            assert_eq!(a, b);
+        }
+    }
     use pil_link::Learner;
 
     fn learner() -> AuvLearner<CoordinateSearch<P>> {

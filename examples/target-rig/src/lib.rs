@@ -22,6 +22,7 @@ use defmt_semihosting as _;
 pub mod bench;
 pub mod clock;
 pub mod functions;
+pub mod host_flash;
 pub mod pil;
 pub mod stack;
 pub mod uart;

@@ -33,6 +33,9 @@ use ctrl_adapt::controller::Mode;
 use ctrl_adapt::optimizer::AnyOptimizer;
 use ctrl_adapt::optimizer::{Optimizer, Vector};
 use host_tests::auv::AuvConfig;
+#[path = "pil/persist.rs"]
+mod persist;
+
 use host_tests::pil::{
     AuvPlant, EpisodeRecord, FaultPlan, PilPlant, Qemu, RunConfig, reference_run, run_episodes,
 };
@@ -62,8 +65,9 @@ impl Firmware {
         })
     }
 
-    fn elf_name(self) -> &'static str {
+    fn elf_name(self, persist: bool) -> &'static str {
         match self {
+            Self::Coordinate if persist => "pil_persist",
             Self::Coordinate => "pil",
             Self::Sracos => "pil_sracos",
             Self::Cem => "pil_cem",
@@ -89,6 +93,14 @@ struct Args {
     /// optimizers, whose first episodes are random draws over the box).
     check_learning: bool,
     log: PathBuf,
+    /// The persistent firmware (`pil_persist`): an uninterrupted run, then one killed at
+    /// seeded points, compared bit for bit.
+    persist: bool,
+    /// Seeded kill points besides the two fixed ones (persistent run).
+    kills: u32,
+    kill_seed: u64,
+    /// The host demo's checkpoint to start from (persistent run).
+    handoff: Option<PathBuf>,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -100,6 +112,10 @@ fn parse_args() -> Result<Args, String> {
         faults: true,
         check_learning: true,
         log: std::env::temp_dir().join("ctrl-adapt-pil-firmware.log"),
+        persist: false,
+        kills: 6,
+        kill_seed: 2026,
+        handoff: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -121,8 +137,20 @@ fn parse_args() -> Result<Args, String> {
             "--no-faults" => args.faults = false,
             "--no-learning-check" => args.check_learning = false,
             "--firmware-log" => args.log = value()?.into(),
+            "--persist" => args.persist = true,
+            "--kills" => args.kills = value()?.parse().map_err(|e| format!("--kills: {e}"))?,
+            "--kill-seed" => {
+                args.kill_seed = value()?.parse().map_err(|e| format!("--kill-seed: {e}"))?
+            }
+            "--handoff" => args.handoff = Some(value()?.into()),
             other => return Err(format!("unknown argument {other}")),
         }
+    }
+    if (args.handoff.is_some() || args.kills != 6) && !args.persist {
+        return Err("--handoff and --kills need --persist".into());
+    }
+    if args.persist && args.firmware != Firmware::Coordinate {
+        return Err("--persist runs the coordinate-search firmware (pil_persist)".into());
     }
     if args.episodes > u16::MAX - 2 {
         return Err("--episodes: at most 65533".into());
@@ -229,7 +257,7 @@ fn main() -> ExitCode {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
     let elf = args.elf.clone().unwrap_or_else(|| {
         root.join("examples/target-rig/target/thumbv7em-none-eabihf/release")
-            .join(args.firmware.elf_name())
+            .join(args.firmware.elf_name(args.persist))
     });
     let learning = args.episodes;
     let total = learning + 2;
@@ -261,6 +289,9 @@ fn main() -> ExitCode {
         "bare PD (host only, no faults): return J = {:.4} (J = -d if d >= D, t_D - D if d < D)\n",
         -bare
     );
+    if args.persist {
+        return persist::main(&args, &elf, config, bare);
+    }
     println!(
         "{:>7}  {:>7}  {:>9}  {:>9}  {:>9}  {:>9}  {:>8}",
         "episode", "mode", "host J", "fw J", "fw best J", "fallbacks", "injected"
