@@ -23,8 +23,12 @@
 //!   ([`zoopt_uncertain_bits`]). With probability `exploration_rate` sample uniformly.
 //! * **Distinct candidates:** a candidate equal to a stored sample is redrawn from the same
 //!   box, up to 100 times.
-//! * **SRACOS update** (`replace`): sorted insertion into the positive set, ties after equal
-//!   costs; the displaced worst positive (or the new sample itself, if no better than it) goes
+//! * **SRACOS update** (`replace`): sorted insertion into the positive set by ZOOpt's
+//!   `binary_search`: a cost equal to the best goes before it (so on a plateau of equal costs
+//!   every newcomer enters and the search walks on), a cost equal to the worst (and above the
+//!   best) after it, that is, out; ties in between go before. The r initial samples are
+//!   sorted stably (ZOOpt's `selection`). The displaced worst positive (or the new sample
+//!   itself, if no better than it) goes
 //!   to the negative set by the [`Replacement`] strategy: WR replaces the worst negative if
 //!   the newcomer is better (else drops the newcomer), RR a random negative, LM the negative
 //!   farthest from the best sample.
@@ -309,7 +313,7 @@ impl Default for RacosConfig {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 struct Archive<const N: usize, const K: usize, const M: usize> {
-    /// Sorted by cost, ties in arrival order; the first `len.min(K)` are filled.
+    /// Sorted by cost (ties as in [`Archive::insert`]); the first `len.min(K)` are filled.
     #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     positive: [Best<N>; K],
     /// Whether value suppression has re-evaluated `positive[i]` (moves with it).
@@ -363,7 +367,21 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
     /// sets are filling, the displaced sample is simply appended.
     fn insert(&mut self, entry: Best<N>, replacement: Replacement, slot: usize) {
         let filled = self.len.min(K);
-        let at = self.positive[..filled].partition_point(|p| p.cost <= entry.cost);
+        let costs = |i: usize| self.positive.get(i).map_or(f32::INFINITY, |p| p.cost);
+        let at = if filled < K {
+            // The r initial samples: a stable sort (ZOOpt's `selection`), ties in arrival
+            // order.
+            self.positive[..filled].partition_point(|p| p.cost <= entry.cost)
+        } else if entry.cost <= costs(0) {
+            // ZOOpt's `binary_search`: a tie with the best goes *before* it, so on a plateau
+            // of equal costs the newcomer joins the positive set and the search keeps moving
+            // instead of stalling on its first positives.
+            0
+        } else if entry.cost >= costs(K - 1) {
+            K
+        } else {
+            self.positive[..K].partition_point(|p| p.cost < entry.cost)
+        };
         let displaced = if filled < K {
             self.shift_in(at, filled, entry);
             self.len += 1;
@@ -849,6 +867,39 @@ mod tests {
         assert_eq!(pos, [0.5, 1.0]);
         assert_eq!(sorted_costs(s.negatives()), [2.0, 3.0, 4.0, 5.0]);
         assert_eq!(s.positives()[0].theta, seen[3]);
+    }
+
+    /// Checks ZOOpt's tie rule on a plateau: once both positives cost the same, a newcomer
+    /// of that cost enters the positive set first and the older second positive moves to
+    /// the negative set (without it the search stalls on a plateau of equal costs); a
+    /// newcomer tying only the worst positive stays out.
+    #[test]
+    fn a_tie_with_the_best_enters_the_positive_set_first() {
+        let mut s = sracos::<3, 2, 3>(SracosConfig::DEFAULT);
+        let mut r = rng(4);
+        let mut told = Vec::new();
+        for c in [1.0, 1.0, 3.0, 4.0, 5.0] {
+            told.push(s.ask(&mut r).unwrap());
+            s.tell(c).unwrap();
+        }
+        assert_eq!(s.positives()[1].theta, told[1]);
+        let tie = s.ask(&mut r).unwrap();
+        s.tell(1.0).unwrap();
+        assert_eq!(s.positives()[0].theta, tie);
+        assert_eq!(s.positives()[1].theta, told[0]);
+        assert!(s.negatives().iter().any(|e| e.theta == told[1]));
+        assert_eq!(sorted_costs(s.negatives()), [1.0, 3.0, 4.0]);
+
+        // Positives now cost 1 and 1; make the worst one 2 by a better newcomer, then tie it.
+        s.ask(&mut r).unwrap();
+        s.tell(0.5).unwrap();
+        let before = s.positives().to_vec();
+        let worst_tie = s.ask(&mut r).unwrap();
+        s.tell(1.0).unwrap();
+        assert_eq!(s.positives(), before.as_slice());
+        // Out of the positive set, it replaced the worst negative (3) by WR.
+        assert!(s.negatives().iter().any(|e| e.theta == worst_tie));
+        assert_eq!(sorted_costs(s.negatives()), [1.0, 1.0, 1.0]);
     }
 
     /// Checks: with exploration off, every candidate after the start is a stored positive
