@@ -4,4 +4,5 @@
 //! release-only claims (`cargo test --release -p experiments`).
 
 pub mod hopping;
+pub mod peers;
 pub mod rockstar_arm;

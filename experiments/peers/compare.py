@@ -1,0 +1,244 @@
+#!/usr/bin/env python3
+"""Side by side: the library's optimizers against pycma, ZOOpt and nevergrad on the robots'
+own tasks (AUV survey, hopping leg, via-point arm), with the same budgets, seeds and episodes.
+
+Every method scores θ through the `oracle` binary (experiments/src/bin/oracle.rs): the
+library's methods run inside it (`run`), the peers ask it for one episode at a time (`eval`).
+Peers search the box mapped to [-1, 1]^n, starting from the task's start θ where they take one,
+with the library's step sizes (σ₀ = a quarter of the AUV box, a sixth of the hopper's, 1 % of
+the arm's, in half-widths).
+
+Per task and method: success rate, median and IQR of the episodes to the success threshold
+(a run that never succeeds counts as beyond the budget), the median best cost, the median
+deployed cost (the returned θ re-run on 5 fresh episodes: the figure a user gets) and the
+optimizer's own time per evaluation (oracle time excluded).
+
+    python3 -m venv .venv-peers && .venv-peers/bin/pip install -r experiments/peers/requirements.txt
+    cargo build --release -p experiments --bin oracle
+    .venv-peers/bin/python experiments/peers/compare.py --tasks auv --seeds 1-20
+
+Outside `cargo test` and CI: the peers come from PyPI.
+"""
+
+import argparse
+import contextlib
+import io
+import json
+import multiprocessing
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ORACLE = os.path.join(ROOT, "target", "release", "oracle")
+LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar"]
+PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt"]
+STEP = {"auv": 0.25, "auv-calm": 0.25, "hopper": 1.0 / 6.0, "arm": 0.01, "sphere": 0.3, "ackley": 0.3}
+
+
+class Oracle:
+    """One oracle process serving one task and seed."""
+
+    def __init__(self, task, seed):
+        self.task, self.seconds = task, 0.0
+        self.proc = subprocess.Popen(
+            [ORACLE], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1
+        )
+        n, budget, threshold = self.ask(f"task {task} {seed}").split()[1:]
+        self.n, self.budget, self.threshold = int(n), int(budget), float(threshold)
+        self.lower = np.array(self.ask("lower").split(), dtype=float)
+        self.upper = np.array(self.ask("upper").split(), dtype=float)
+        self.start = np.array(self.ask("start").split(), dtype=float)
+
+    def ask(self, line):
+        t0 = time.perf_counter()
+        self.proc.stdin.write(line + "\n")
+        answer = self.proc.stdout.readline().strip()
+        self.seconds += time.perf_counter() - t0
+        if answer.startswith("err"):
+            raise RuntimeError(f"oracle: {answer} (after {line[:40]!r})")
+        return answer
+
+    def close(self):
+        self.proc.stdin.write("quit\n")
+        self.proc.stdin.close()
+        self.proc.wait()
+
+    def box(self, u):
+        """[-1, 1]^n → the task's box."""
+        half = (self.upper - self.lower) / 2
+        return self.lower + half * (np.clip(u, -1.0, 1.0) + 1.0)
+
+    def unit(self, x):
+        half = (self.upper - self.lower) / 2
+        return (x - self.lower) / half - 1.0
+
+
+class Budget(Exception):
+    pass
+
+
+class Scorer:
+    """f(u) for a peer: one episode of the oracle, recorded; stops at the budget."""
+
+    def __init__(self, oracle, budget):
+        self.oracle, self.budget, self.costs = oracle, budget, []
+
+    def __call__(self, u):
+        if len(self.costs) >= self.budget:
+            raise Budget()
+        x = self.oracle.box(np.asarray(u, dtype=float))
+        c = float(self.oracle.ask("eval " + " ".join(f"{v:.9e}" for v in x)))
+        self.costs.append(c)
+        return c
+
+
+def run_peer(method, oracle, budget, seed):
+    """Runs a peer; returns (costs, returned θ in the box)."""
+    f = Scorer(oracle, budget)
+    n, step, x0 = oracle.n, STEP[oracle.task], oracle.unit(oracle.start)
+    returned = None
+    if method == "zoopt-sracos":
+        from zoopt import Dimension, Objective, Opt, Parameter
+
+        dim = Dimension(n, [[-1.0, 1.0]] * n, [True] * n)
+        objective = Objective(lambda s: f(s.get_x()), dim)
+        # Budget-based set sizes (auto_set), exploration 0.01, uncertain bits 1: the defaults.
+        parameter = Parameter(budget=budget, seed=seed)
+        with contextlib.redirect_stdout(io.StringIO()):
+            solution = Opt.min(objective, parameter)
+        returned = np.array(solution.get_x())
+    elif method == "pycma":
+        import cma
+
+        es = cma.CMAEvolutionStrategy(
+            x0, step, {"bounds": [-1, 1], "seed": seed, "maxfevals": budget, "verbose": -9}
+        )
+        try:
+            while not es.stop():
+                xs = es.ask()
+                es.tell(xs, [f(x) for x in xs])
+        except Budget:
+            pass
+        returned = np.array(es.result.xbest if es.result.xbest is not None else x0)
+    elif method.startswith("ng-"):
+        import nevergrad as ng
+
+        param = ng.p.Array(init=x0).set_bounds(-1.0, 1.0).set_mutation(sigma=step)
+        param.random_state = np.random.RandomState(seed)
+        name = {"ng-oneplusone": "OnePlusOne", "ng-ngopt": "NGOpt"}[method]
+        opt = ng.optimizers.registry[name](parametrization=param, budget=budget)
+        for _ in range(budget):
+            cand = opt.ask()
+            opt.tell(cand, f(cand.value))
+        returned = np.array(opt.provide_recommendation().value)
+    else:
+        raise ValueError(method)
+    return f.costs, oracle.box(returned)
+
+
+def one(job):
+    task, method, seed, budget = job
+    oracle = Oracle(task, seed)
+    budget = budget or oracle.budget
+    if method in LIBRARY:
+        evals, first, best, deployed, ns = oracle.ask(f"run {method} {budget} {seed}").split()
+        result = dict(
+            first=None if first == "-" else int(first),
+            best=float(best),
+            deployed=float(deployed),
+            us_per_eval=float(ns) / 1e3,
+            evaluations=int(evals),
+        )
+    else:
+        t0 = time.perf_counter()
+        oracle.seconds = 0.0
+        costs, returned = run_peer(method, oracle, budget, seed)
+        own = time.perf_counter() - t0 - oracle.seconds
+        deployed = float(oracle.ask("deploy " + " ".join(f"{v:.9e}" for v in returned)))
+        first = next((k + 1 for k, c in enumerate(costs) if c < oracle.threshold), None)
+        result = dict(
+            first=first,
+            best=min(costs),
+            deployed=deployed,
+            us_per_eval=own / max(len(costs), 1) * 1e6,
+            evaluations=len(costs),
+        )
+    oracle.close()
+    return dict(task=task, method=method, seed=seed, budget=budget, **result)
+
+
+def quartiles(values):
+    values = sorted(values)
+    if len(values) < 2:
+        return values[0], values[0], values[0]
+    q = statistics.quantiles(values, n=4, method="inclusive")
+    return q[0], statistics.median(values), q[2]
+
+
+def table(results, tasks, methods):
+    lines = [
+        "| task | method | success | episodes to success, median (IQR) | best cost (median) "
+        "| deployed cost (median) | optimizer µs / evaluation (median) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for task in tasks:
+        for method in methods:
+            rows = [r for r in results if r["task"] == task and r["method"] == method]
+            if not rows:
+                continue
+            budget = rows[0]["budget"]
+            firsts = [r["first"] if r["first"] is not None else float("inf") for r in rows]
+            q1, med, q3 = quartiles(firsts)
+            show = lambda v: f"> {budget}" if v == float("inf") else f"{v:.0f}"  # noqa: E731
+            ok = sum(r["first"] is not None for r in rows)
+            lines.append(
+                f"| {task} | {method} | {ok}/{len(rows)} | {show(med)} ({show(q1)}–{show(q3)}) "
+                f"| {statistics.median(r['best'] for r in rows):.3g} "
+                f"| {statistics.median(r['deployed'] for r in rows):.3g} "
+                f"| {statistics.median(r['us_per_eval'] for r in rows):.1f} |"
+            )
+    return "\n".join(lines)
+
+
+def seeds(text):
+    if "-" in text:
+        a, b = text.split("-")
+        return list(range(int(a), int(b) + 1))
+    return [int(s) for s in text.split(",")]
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--tasks", default="auv,hopper,arm")
+    p.add_argument("--methods", default=",".join(LIBRARY + PEERS))
+    p.add_argument("--seeds", default="1-10", help="e.g. 1-20 or 1,2,5")
+    p.add_argument("--budget", type=int, default=0, help="episodes (default: the task's)")
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--json", help="write every run's result here")
+    a = p.parse_args()
+    if not os.path.exists(ORACLE):
+        sys.exit("build the oracle first: cargo build --release -p experiments --bin oracle")
+    tasks, methods = a.tasks.split(","), a.methods.split(",")
+    jobs = [(t, m, s, a.budget) for t in tasks for m in methods for s in seeds(a.seeds)]
+    with multiprocessing.Pool(a.jobs) as pool:
+        results = []
+        for r in pool.imap_unordered(one, jobs):
+            results.append(r)
+            print(f"{r['task']:6} {r['method']:14} seed {r['seed']:3}: first {r['first']}, "
+                  f"best {r['best']:.4g}, deployed {r['deployed']:.4g}", file=sys.stderr)
+    if a.json:
+        with open(a.json, "w") as out:
+            json.dump(results, out, indent=1)
+    print(table(results, tasks, methods))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,468 @@
+//! The robots' own tasks as black boxes, for the side-by-side comparison with the Python
+//! peers (pycma, ZOOpt, nevergrad): a [`Trial`] scores θ one episode at a time, exactly as an
+//! optimizer on the robot sees it, and re-runs a returned θ on fresh episodes (the *deployed*
+//! cost, the figure a user gets). The `oracle` binary serves trials over a line protocol to
+//! `peers/compare.py`; [`run_library`] drives the library's optimizers on the same trials
+//! in-process, so every method sees the same episodes in the same order.
+//!
+//! | task | n | box | start | budget | success | episodes |
+//! |---|---|---|---|---|---|---|
+//! | `auv` | 18 | [−1, 1] | W = 0 | 150 | cost < 1 (within D = 1 m) | the "real" plant (0.6 m/s current) with seeded disturbances; each episode continues the noise; deployed on 5 new disturbance sequences |
+//! | `auv-calm` | 18 | [−1, 1] | W = 0 | 150 | cost < 1 | the same plant without disturbances: deterministic |
+//! | `hopper` | 31 | the task's box | zero correction | 200 | cost ≤ 3·10⁻⁴ | the seed's block course, replayed every episode; deployed on 5 unseen courses |
+//! | `arm` | 50 | [−10⁴, 10⁴] | minimum-jerk θ | 1,000 | cost < 1 % of the start's | deterministic |
+//! | `sphere`, `ackley` | 10 | [−1, 1] | 0 | 100 | cost < 0.01 (Sphere), Ackley's value at that distance | shifted to 0.2, deterministic |
+
+use std::time::Instant;
+
+use ctrl_adapt::optimizer::{
+    Bounds, CmaesConfig, ControlledRandomSearch, CoordinateConfig, CrsConfig, Optimizer, Rockstar,
+    RockstarConfig, Sracos, SracosConfig, Status, Vector,
+};
+use host_tests::arm::{self, ViaPointArm};
+use host_tests::auv::{Auv, AuvConfig};
+use host_tests::functions::{ackley, sphere};
+use host_tests::{auv_task, hopper_task};
+use rand_core::SeedableRng;
+use rand_xoshiro::Xoshiro128PlusPlus;
+
+/// The dimension of the synthetic tasks.
+pub const SYNTHETIC: usize = 10;
+
+/// Fresh episodes a returned θ is re-run on for its deployed cost.
+pub const DEPLOY_EPISODES: u64 = 5;
+
+/// One of the robots' tasks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Task {
+    /// The AUV survey in a current (18 parameters), with the experiments' disturbances.
+    Auv,
+    /// The same survey without disturbances: every episode of a θ is the same, and the
+    /// quantised survey cost (time within D in 0.1 s steps) has plateaus.
+    AuvCalm,
+    /// The hopping leg on uneven ground (31 parameters).
+    Hopper,
+    /// The 10-link via-point arm (50 parameters).
+    Arm,
+    /// Sphere shifted to 0.2 on [−1, 1]¹⁰ (the SRACOS paper's synthetic set-up).
+    Sphere,
+    /// Ackley shifted to 0.2 on [−1, 1]¹⁰.
+    Ackley,
+}
+
+impl Task {
+    /// Every task, in table order.
+    pub const ALL: [Self; 6] = [
+        Self::Auv,
+        Self::AuvCalm,
+        Self::Hopper,
+        Self::Arm,
+        Self::Sphere,
+        Self::Ackley,
+    ];
+
+    /// The task named `name` (`auv`, `auv-calm`, `hopper`, `arm`, `sphere`, `ackley`).
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    /// Its name in the protocol and the table.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auv => "auv",
+            Self::AuvCalm => "auv-calm",
+            Self::Hopper => "hopper",
+            Self::Arm => "arm",
+            Self::Sphere => "sphere",
+            Self::Ackley => "ackley",
+        }
+    }
+
+    /// The number of parameters.
+    pub fn dimension(self) -> usize {
+        match self {
+            Self::Auv | Self::AuvCalm => auv_task::P,
+            Self::Hopper => hopper_task::P,
+            Self::Arm => arm::PARAMS,
+            Self::Sphere | Self::Ackley => SYNTHETIC,
+        }
+    }
+
+    /// The episode budget of the comparison.
+    pub fn budget(self) -> u32 {
+        match self {
+            Self::Auv | Self::AuvCalm => 150,
+            Self::Hopper => 200,
+            Self::Arm => 1000,
+            Self::Sphere | Self::Ackley => 10 * SYNTHETIC as u32,
+        }
+    }
+}
+
+/// The episodes of one task and seed.
+enum Episodes {
+    Auv(Box<Auv>),
+    Hopper(u64),
+    Arm(Box<ViaPointArm>),
+    Synthetic(fn(&Vector<SYNTHETIC>, f64) -> f32),
+}
+
+/// One run's black box: the task's box, start, success threshold, and its episodes.
+pub struct Trial {
+    task: Task,
+    seed: u64,
+    episodes: Episodes,
+    lower: Vec<f32>,
+    upper: Vec<f32>,
+    start: Vec<f32>,
+    threshold: f32,
+    evaluations: u32,
+}
+
+fn to_vec<const N: usize>(v: &Vector<N>) -> Vec<f32> {
+    v.iter().copied().collect()
+}
+
+fn to_vector<const N: usize>(x: &[f32]) -> Option<Vector<N>> {
+    (x.len() == N).then(|| Vector::from_fn(|i, _| x[i]))
+}
+
+impl Trial {
+    /// The trial of `task` with seed `seed`.
+    pub fn new(task: Task, seed: u64) -> Self {
+        let (episodes, lower, upper, start, threshold) = match task {
+            Task::Auv | Task::AuvCalm => {
+                let b = auv_task::bounds();
+                let auv = if task == Task::Auv {
+                    auv_task::plant(AuvConfig::REAL, seed)
+                } else {
+                    Auv::new(AuvConfig::REAL, seed)
+                };
+                (
+                    Episodes::Auv(Box::new(auv)),
+                    to_vec(b.lower()),
+                    to_vec(b.upper()),
+                    vec![0.0; auv_task::P],
+                    auv_task::RADIUS,
+                )
+            }
+            Task::Hopper => {
+                let b = hopper_task::bounds();
+                (
+                    Episodes::Hopper(seed),
+                    to_vec(b.lower()),
+                    to_vec(b.upper()),
+                    vec![0.0; hopper_task::P],
+                    3e-4,
+                )
+            }
+            Task::Arm => {
+                let a = ViaPointArm::new();
+                let b = arm::bounds();
+                let start = a.minimum_jerk_theta();
+                let threshold = 0.01 * a.cost(&start);
+                (
+                    Episodes::Arm(Box::new(a)),
+                    to_vec(b.lower()),
+                    to_vec(b.upper()),
+                    to_vec(&start),
+                    threshold,
+                )
+            }
+            Task::Sphere | Task::Ackley => (
+                Episodes::Synthetic(if task == Task::Sphere {
+                    sphere::<SYNTHETIC>
+                } else {
+                    ackley::<SYNTHETIC>
+                }),
+                vec![-1.0; SYNTHETIC],
+                vec![1.0; SYNTHETIC],
+                vec![0.0; SYNTHETIC],
+                // Sphere: within 0.1 of the optimum; Ackley: the same distance's value.
+                if task == Task::Sphere {
+                    0.01
+                } else {
+                    ackley::<SYNTHETIC>(&Vector::repeat(0.2 + 0.1 / (SYNTHETIC as f32).sqrt()), 0.2)
+                },
+            ),
+        };
+        Self {
+            task,
+            seed,
+            episodes,
+            lower,
+            upper,
+            start,
+            threshold,
+            evaluations: 0,
+        }
+    }
+
+    /// The task.
+    pub fn task(&self) -> Task {
+        self.task
+    }
+
+    /// The box's lower corner.
+    pub fn lower(&self) -> &[f32] {
+        &self.lower
+    }
+
+    /// The box's upper corner.
+    pub fn upper(&self) -> &[f32] {
+        &self.upper
+    }
+
+    /// The start θ (for methods that take one).
+    pub fn start(&self) -> &[f32] {
+        &self.start
+    }
+
+    /// Success: a cost below this.
+    pub fn threshold(&self) -> f32 {
+        self.threshold
+    }
+
+    /// Episodes scored so far.
+    pub fn evaluations(&self) -> u32 {
+        self.evaluations
+    }
+
+    /// θ clipped into the box (peers may step a hair outside it), or `None` for a wrong
+    /// length or a non-finite entry.
+    fn clip(&self, x: &[f32]) -> Option<Vec<f32>> {
+        (x.len() == self.lower.len() && x.iter().all(|v| v.is_finite())).then(|| {
+            x.iter()
+                .zip(self.lower.iter().zip(&self.upper))
+                .map(|(v, (l, u))| v.max(*l).min(*u))
+                .collect()
+        })
+    }
+
+    /// One learning episode of θ (clipped into the box): its cost. `None` for a malformed θ.
+    pub fn score(&mut self, x: &[f32]) -> Option<f32> {
+        let x = self.clip(x)?;
+        self.evaluations += 1;
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(self.seed);
+        Some(match &mut self.episodes {
+            Episodes::Auv(auv) => auv_cost(&x, auv, &mut rng),
+            Episodes::Hopper(seed) => {
+                hopper_cost(&x, &mut hopper_task::plant(true, 1000 + *seed), &mut rng)
+            }
+            Episodes::Arm(a) => a.cost(&to_vector(&x)?),
+            Episodes::Synthetic(f) => f(&to_vector(&x)?, 0.2),
+        })
+    }
+
+    /// θ's mean cost over [`DEPLOY_EPISODES`] fresh episodes (not counted as evaluations):
+    /// new disturbance sequences for the AUV, unseen block courses for the hopper, the same
+    /// deterministic episode for the arm.
+    pub fn deployed(&self, x: &[f32]) -> Option<f32> {
+        let x = self.clip(x)?;
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(self.seed);
+        let fresh = |k: u64| 20_000 + 100 * self.seed + k;
+        let total: f32 = match &self.episodes {
+            Episodes::Auv(auv) => (0..DEPLOY_EPISODES)
+                .map(|k| {
+                    let mut auv = Auv::new(*auv.config(), fresh(k));
+                    auv_cost(&x, &mut auv, &mut rng)
+                })
+                .sum(),
+            Episodes::Hopper(_) => (0..DEPLOY_EPISODES)
+                .map(|k| hopper_cost(&x, &mut hopper_task::plant(true, fresh(k)), &mut rng))
+                .sum(),
+            Episodes::Arm(a) => DEPLOY_EPISODES as f32 * a.cost(&to_vector(&x)?),
+            Episodes::Synthetic(f) => DEPLOY_EPISODES as f32 * f(&to_vector(&x)?, 0.2),
+        };
+        Some(total / DEPLOY_EPISODES as f32)
+    }
+}
+
+fn auv_cost(x: &[f32], auv: &mut Auv, rng: &mut Xoshiro128PlusPlus) -> f32 {
+    let theta = to_vector(x).unwrap_or_else(Vector::zeros);
+    auv_task::evaluate(theta, auv, rng, false).map_or(f32::INFINITY, |e| e.report.cost)
+}
+
+fn hopper_cost(
+    x: &[f32],
+    hopper: &mut host_tests::hopper::Hopper,
+    rng: &mut Xoshiro128PlusPlus,
+) -> f32 {
+    let theta = to_vector(x).unwrap_or_else(Vector::zeros);
+    hopper_task::evaluate(theta, hopper, rng, false).map_or(f32::INFINITY, |e| e.report.cost)
+}
+
+/// What one optimizer run did on a trial.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunReport {
+    /// The cost of every episode, in order.
+    pub costs: Vec<f32>,
+    /// The θ the method returns (its best).
+    pub returned: Vec<f32>,
+    /// Mean optimizer time per evaluation (ask + tell), nanoseconds.
+    pub optimizer_ns: f64,
+}
+
+impl RunReport {
+    /// The first episode (1-based) below `threshold`, if any.
+    pub fn first_success(&self, threshold: f32) -> Option<usize> {
+        self.costs
+            .iter()
+            .position(|c| *c < threshold)
+            .map(|k| k + 1)
+    }
+
+    /// The lowest cost of the run.
+    pub fn best(&self) -> f32 {
+        self.costs.iter().copied().fold(f32::INFINITY, f32::min)
+    }
+}
+
+/// The library's methods of the comparison.
+pub const LIBRARY_METHODS: [&str; 5] = ["coordinate", "sracos", "crs", "cmaes", "rockstar"];
+
+/// Runs the library method `method` (one of [`LIBRARY_METHODS`]) on `trial` for `budget`
+/// episodes with the RNG seeded by `seed`; `None` for an unknown method.
+pub fn run_library(method: &str, trial: &mut Trial, budget: u32, seed: u64) -> Option<RunReport> {
+    match trial.task() {
+        // λ = 4 + ⌊3 ln n⌋, CMA-ES's default population.
+        Task::Auv | Task::AuvCalm => run_n::<{ auv_task::P }, 12>(method, trial, budget, seed),
+        Task::Hopper => run_n::<{ hopper_task::P }, 14>(method, trial, budget, seed),
+        Task::Arm => run_n::<{ arm::PARAMS }, 15>(method, trial, budget, seed),
+        Task::Sphere | Task::Ackley => run_n::<SYNTHETIC, 10>(method, trial, budget, seed),
+    }
+}
+
+fn run_n<const N: usize, const L: usize>(
+    method: &str,
+    trial: &mut Trial,
+    budget: u32,
+    seed: u64,
+) -> Option<RunReport>
+where
+    nalgebra::Const<N>: ctrl_adapt::optimizer::cmaes::SymmetricEigenSize<N>,
+{
+    let bounds = Bounds::<N>::try_new(to_vector(trial.lower())?, to_vector(trial.upper())?).ok()?;
+    let start: Vector<N> = to_vector(trial.start())?;
+    // Steps and σ in half-widths of the box where the task has no better scale: a quarter of
+    // the AUV box (the tuned local step), a sixth of the hopper's, 1 % of the arm's (σ = 100,
+    // the via-point experiments' exploration).
+    let fraction = match trial.task() {
+        Task::Auv | Task::AuvCalm => 0.25,
+        Task::Hopper => 1.0 / 6.0,
+        Task::Arm => 0.01,
+        Task::Sphere | Task::Ackley => 0.3,
+    };
+    let steps = (bounds.upper() - bounds.lower()) * (fraction / 2.0);
+    match method {
+        "coordinate" => {
+            let config = CoordinateConfig {
+                tolerance: 1e-3 * fraction,
+                max_evaluations: budget,
+                ..CoordinateConfig::DEFAULT
+            };
+            let o = ctrl_adapt::optimizer::CoordinateSearch::try_with_steps(
+                bounds, start, steps, config,
+            )
+            .ok()?;
+            Some(drive(o, trial, budget, seed))
+        }
+        "sracos" => {
+            let config = SracosConfig {
+                max_evaluations: budget,
+                ..SracosConfig::DEFAULT
+            };
+            // ZOOpt's set sizes for the budget.
+            Some(
+                match ctrl_adapt::optimizer::sracos::zoopt_set_sizes(budget) {
+                    (1, 3) => drive(
+                        Sracos::<N, 1, 3>::try_new(bounds, config).ok()?,
+                        trial,
+                        budget,
+                        seed,
+                    ),
+                    (1, 5) => drive(
+                        Sracos::<N, 1, 5>::try_new(bounds, config).ok()?,
+                        trial,
+                        budget,
+                        seed,
+                    ),
+                    (2, 10) => drive(
+                        Sracos::<N, 2, 10>::try_new(bounds, config).ok()?,
+                        trial,
+                        budget,
+                        seed,
+                    ),
+                    _ => drive(
+                        Sracos::<N, 2, 20>::try_new(bounds, config).ok()?,
+                        trial,
+                        budget,
+                        seed,
+                    ),
+                },
+            )
+        }
+        "crs" => {
+            let config = CrsConfig {
+                max_evaluations: budget,
+                ..CrsConfig::DEFAULT
+            };
+            let o = ControlledRandomSearch::<N, 100>::try_new(bounds, config).ok()?;
+            Some(drive(o, trial, budget, seed))
+        }
+        "cmaes" => {
+            let config = CmaesConfig {
+                initial_sigma: fraction,
+                max_evaluations: budget,
+                ..CmaesConfig::DEFAULT
+            };
+            let o = ctrl_adapt::optimizer::Cmaes::<N, L>::try_new(bounds, start, config).ok()?;
+            Some(drive(o, trial, budget, seed))
+        }
+        "rockstar" => {
+            let config = RockstarConfig {
+                initial_sigma: fraction,
+                max_evaluations: budget,
+                ..RockstarConfig::DEFAULT
+            };
+            let o = Rockstar::<N, 160>::try_new(bounds, start, config).ok()?;
+            Some(drive(o, trial, budget, seed))
+        }
+        _ => None,
+    }
+}
+
+/// Asks and tells `optimizer` on `trial` for `budget` episodes (or until it stops).
+fn drive<const N: usize, O: Optimizer<N>>(
+    mut optimizer: O,
+    trial: &mut Trial,
+    budget: u32,
+    seed: u64,
+) -> RunReport {
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let mut costs = Vec::with_capacity(budget as usize);
+    let mut spent = std::time::Duration::ZERO;
+    while costs.len() < budget as usize && optimizer.status() == Status::Running {
+        let t0 = Instant::now();
+        let Ok(theta) = optimizer.ask(&mut rng) else {
+            break;
+        };
+        spent += t0.elapsed();
+        let cost = trial.score(theta.as_slice()).unwrap_or(f32::INFINITY);
+        costs.push(cost);
+        let t1 = Instant::now();
+        let told = optimizer.tell(cost.min(f32::MAX));
+        spent += t1.elapsed();
+        if told.is_err() {
+            break;
+        }
+    }
+    let returned = optimizer
+        .best()
+        .map_or_else(|| trial.start().to_vec(), |b| to_vec(&b.theta));
+    RunReport {
+        optimizer_ns: spent.as_nanos() as f64 / costs.len().max(1) as f64,
+        costs,
+        returned,
+    }
+}
