@@ -366,11 +366,21 @@ impl<const N: usize, const K: usize, const M: usize> Archive<N, K, M> {
     /// into the negative set by `replacement` (`slot` is RR's pre-drawn index). While the
     /// sets are filling, the displaced sample is simply appended.
     fn insert(&mut self, entry: Best<N>, replacement: Replacement, slot: usize) {
+        self.insert_with(entry, replacement, slot, false);
+    }
+
+    /// [`Archive::insert`] as a stable sort (ties after equal costs, in arrival order): the
+    /// r initial samples, and RACOS's `selection` over stored ∪ batch (inserted one by one
+    /// with WR).
+    fn insert_stable(&mut self, entry: Best<N>) {
+        self.insert_with(entry, Replacement::Worst, 0, true);
+    }
+
+    fn insert_with(&mut self, entry: Best<N>, replacement: Replacement, slot: usize, stable: bool) {
         let filled = self.len.min(K);
         let costs = |i: usize| self.positive.get(i).map_or(f32::INFINITY, |p| p.cost);
-        let at = if filled < K {
-            // The r initial samples: a stable sort (ZOOpt's `selection`), ties in arrival
-            // order.
+        let at = if filled < K || stable {
+            // A stable sort (ZOOpt's `selection`), ties in arrival order.
             self.positive[..filled].partition_point(|p| p.cost <= entry.cost)
         } else if entry.cost <= costs(0) {
             // ZOOpt's `binary_search`: a tie with the best goes *before* it, so on a plateau
@@ -804,7 +814,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
         let theta = self.ledger.accept(cost)?;
         let entry = Best { theta, cost };
         if !self.archive.is_full() {
-            self.archive.insert(entry, Replacement::Worst, 0);
+            self.archive.insert_stable(entry);
         } else if let Some(slot) = self.batch.get_mut(self.batch_len) {
             *slot = entry;
             self.batch_len += 1;
@@ -812,7 +822,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
                 // Inserting one by one with WR keeps the best K positive and the next best
                 // M negative: ZOOpt's `selection` over stored ∪ batch.
                 for e in self.batch {
-                    self.archive.insert(e, Replacement::Worst, 0);
+                    self.archive.insert_stable(e);
                 }
                 self.batch_len = 0;
             }
