@@ -17,7 +17,9 @@ pub mod policy;
 
 pub use adapter::{Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode};
 pub use pd::{Derivative, Pd};
-pub use policy::{CorrectedPd, FeatureMap, LinearPolicy, PeriodicPd, PeriodicRbf, StateFeatures};
+pub use policy::{
+    CorrectedPd, FeatureMap, IdentityFeatures, LinearPolicy, PeriodicPd, PeriodicRbf, StateFeatures,
+};
 
 use crate::vector::Vector;
 

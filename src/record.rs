@@ -273,8 +273,8 @@ pub(crate) mod array {
 mod shapes {
     use super::{Persistent, Shape};
     use crate::controller::{
-        Adapter, CorrectedPd, EpisodeRunner, LinearPolicy, Pd, PeriodicPd, PeriodicRbf,
-        StateFeatures,
+        Adapter, CorrectedPd, EpisodeRunner, IdentityFeatures, LinearPolicy, Pd, PeriodicPd,
+        PeriodicRbf, StateFeatures,
     };
     use crate::cost::{ApexHeightCost, QuadraticCost, SurveyCost};
     use crate::optimizer::{
@@ -320,6 +320,9 @@ mod shapes {
     }
     impl<const A: usize> Persistent for Pd<A> {
         const SHAPE: Shape = Shape::new(*b"PD__", &[A]);
+    }
+    impl Persistent for IdentityFeatures {
+        const SHAPE: Shape = Shape::new(*b"IDFE", &[]);
     }
     impl<const S: usize> Persistent for StateFeatures<S> {
         const SHAPE: Shape = Shape::new(*b"STFE", &[S]);

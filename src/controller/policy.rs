@@ -21,7 +21,7 @@ use core::f32::consts::TAU;
 
 use super::{Controller, Pd, clamp};
 use crate::error::Error;
-use crate::vector::Vector;
+use crate::vector::{Vector, unrolled};
 
 /// Features φ ∈ R^F of the state and of the time since the episode began.
 pub trait FeatureMap<const S: usize, const F: usize> {
@@ -30,6 +30,28 @@ pub trait FeatureMap<const S: usize, const F: usize> {
 
     /// φ(state, time), given the map's learned parameters (`LEARNED` values).
     fn features(&self, state: &Vector<S>, time: f32, learned: &[f32]) -> Vector<F>;
+}
+
+/// φ = state: the state itself as features, with nothing stored and nothing computed per
+/// tick (the AUV policy: position error and velocity, 6 features). Use it rather than
+/// [`StateFeatures::identity`], which keeps S ones and multiplies every feature by one.
+///
+/// ```
+/// use ctrl_adapt::controller::{FeatureMap, IdentityFeatures};
+/// use ctrl_adapt::Vector;
+/// let state = Vector::<2>::new(0.5, -1.0);
+/// assert_eq!(IdentityFeatures.features(&state, 0.0, &[]), state);
+/// assert_eq!(core::mem::size_of::<IdentityFeatures>(), 0);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct IdentityFeatures;
+
+impl<const S: usize> FeatureMap<S, S> for IdentityFeatures {
+    fn features(&self, state: &Vector<S>, _time: f32, _learned: &[f32]) -> Vector<S> {
+        *state
+    }
 }
 
 /// φ = scale ∘ state: the state-linear features of the AUV policy (position error and
@@ -60,7 +82,10 @@ impl<const S: usize> StateFeatures<S> {
 
 impl<const S: usize> FeatureMap<S, S> for StateFeatures<S> {
     fn features(&self, state: &Vector<S>, _time: f32, _learned: &[f32]) -> Vector<S> {
-        self.scale.component_mul(state)
+        // `component_mul`, unrolled (see `LinearPolicy::correction_from_features`).
+        let mut phi = Vector::<S>::zeros();
+        unrolled::<S>(|i| phi[i] = self.scale[i] * state[i]);
+        phi
     }
 }
 
@@ -200,20 +225,29 @@ impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
         theta: &Vector<P>,
         phi: &Vector<F>,
     ) -> Vector<C> {
+        const { assert!(P >= C * F, "θ must hold the C·F weights") };
         let mut c = Vector::<C>::zeros();
-        // Plain slices rather than nalgebra's strided iterators: this runs every control
-        // tick, and the slice loops compile to a tight multiply-accumulate.
-        let rows = theta.as_slice().chunks_exact(F);
-        let outputs = c.as_mut_slice().iter_mut().zip(self.envelope.as_slice());
-        for ((out, &limit), row) in outputs.zip(rows) {
-            let sum: f32 = row.iter().zip(phi.as_slice()).map(|(w, p)| w * p).sum();
-            // `f32::clamp` without its panic path (see `controller::clamp`).
-            *out = if sum.is_nan() {
-                0.0
+        // Straight-line code for the common sizes (see `unrolled`): this runs every control
+        // tick, and firmware is built for size, where loops stay rolled.
+        unrolled::<C>(|a| {
+            // -0.0 is the neutral element of `+` (0.0 is not: 0.0 + -0.0 = 0.0), so the first
+            // addition folds away, as in `Iterator::sum`.
+            let mut sum = -0.0;
+            unrolled::<F>(|f| sum += theta[F * a + f] * phi[f]);
+            let limit = self.envelope[a];
+            // clamp(sum, −limit, limit), NaN → 0, with one comparison of |sum| on the common
+            // path (inside the envelope; the ordered `<=` is false for NaN), and the sign
+            // past it.
+            c[a] = if sum.abs() <= limit {
+                sum
+            } else if sum > 0.0 {
+                limit
+            } else if sum < 0.0 {
+                -limit
             } else {
-                clamp(sum, -limit, limit)
+                0.0 // NaN
             };
-        }
+        });
         c
     }
 
@@ -514,7 +548,64 @@ mod tests {
         assert_eq!(c, Vector::from([0.0, 0.0, 0.2]));
     }
 
+    /// The textbook clamp(W·φ), NaN → 0, as loops: what the unrolled correction must equal.
+    fn reference<const P: usize>(theta: &Vector<P>, phi: &Vector<6>, limit: f32) -> Vector<3> {
+        Vector::from_fn(|a, _| {
+            let sum: f32 = (0..6).map(|f| theta[6 * a + f] * phi[f]).sum();
+            if sum.is_nan() {
+                0.0
+            } else {
+                sum.clamp(-limit, limit)
+            }
+        })
+    }
+
+    #[test]
+    fn non_finite_sums_saturate_or_vanish() {
+        // Checks: +∞ and −∞ sums clamp to ±envelope, a NaN sum (∞ − ∞, or a NaN state) gives
+        // 0, and the identity map gives what a scale of ones gives.
+        let policy =
+            LinearPolicy::<3, 6, _>::try_new(IdentityFeatures, Vector::repeat(0.4)).unwrap();
+        let mut theta = Vector::<18>::zeros();
+        theta[0] = f32::MAX;
+        theta[1] = f32::MAX;
+        theta[6] = -f32::MAX;
+        theta[7] = -f32::MAX;
+        theta[12] = f32::MAX;
+        theta[13] = -f32::MAX;
+        let state = Vector::<6>::from([f32::MAX, f32::MAX, 0.0, 0.0, 0.0, 0.0]);
+        let c = policy.correction(&theta, &state, 0.0);
+        assert_eq!(c, Vector::from([0.4, -0.4, 0.0]));
+        let nan = Vector::<6>::from([f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(policy.correction(&theta, &nan, 0.0), Vector::<3>::zeros());
+        let scaled = auv().policy().correction(&theta, &state, 0.0);
+        assert_eq!(scaled, c);
+    }
+
     proptest! {
+        /// Checks: the unrolled correction equals the textbook loops bit for bit (the same
+        /// products summed in the same order), for both the identity and a scaled map.
+        #[test]
+        fn correction_equals_the_textbook_loops(
+            theta in prop::array::uniform18(-1e3f32..1e3),
+            state in prop::array::uniform6(-1e3f32..1e3),
+            scale in prop::array::uniform6(-2f32..2.0),
+        ) {
+            let (theta, state, scale) =
+                (Vector::from(theta), Vector::from(state), Vector::from(scale));
+            let identity = LinearPolicy::<3, 6, _>::try_new(IdentityFeatures, Vector::repeat(0.4))
+                .unwrap();
+            let c = identity.correction(&theta, &state, 0.0);
+            prop_assert_eq!(c, reference(&theta, &state, 0.4));
+            let scaled = LinearPolicy::<3, 6, _>::try_new(
+                StateFeatures::scaled(scale).unwrap(),
+                Vector::repeat(0.4),
+            )
+            .unwrap();
+            let c = scaled.correction(&theta, &state, 0.0);
+            prop_assert_eq!(c, reference(&theta, &scale.component_mul(&state), 0.4));
+        }
+
         /// Checks: for any θ and any state (NaN and infinities included), the AUV correction
         /// stays within its envelope, and the action within the PD's output limit.
         #[test]

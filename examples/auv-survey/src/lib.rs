@@ -35,8 +35,8 @@
 //! * **End** → [`Adapter::end_episode`]; the Report frame carries a [`Report`].
 
 use ctrl_adapt::controller::{
-    Adapter, AdapterConfig, Controller as _, CorrectedPd, EpisodeReport, LinearPolicy, Mode, Pd,
-    StateFeatures,
+    Adapter, AdapterConfig, Controller as _, CorrectedPd, EpisodeReport, IdentityFeatures,
+    LinearPolicy, Mode, Pd,
 };
 use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::optimizer::{
@@ -88,7 +88,7 @@ pub const CEM_ELITE: usize = 5;
 pub const CRS_POINTS: usize = 100;
 
 /// The vehicle's controller: PD on position producing velocity commands, corrected by W·φ.
-pub type AuvController = CorrectedPd<A, S, S, P, StateFeatures<S>>;
+pub type AuvController = CorrectedPd<A, S, S, P, IdentityFeatures>;
 
 /// The adapter over optimizer `O`.
 pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyCost, P, S, A>;
@@ -104,7 +104,7 @@ pub type AuvCrs = ControlledRandomSearch<P, CRS_POINTS>;
 pub fn controller() -> Result<AuvController, Error> {
     let pd = Pd::<A>::try_new(Vector::repeat(KP), Vector::repeat(KD))?
         .with_limit(Vector::repeat(V_MAX))?;
-    let policy = LinearPolicy::try_new(StateFeatures::identity(), Vector::repeat(C_MAX))?;
+    let policy = LinearPolicy::try_new(IdentityFeatures, Vector::repeat(C_MAX))?;
     Ok(CorrectedPd::new(pd, policy))
 }
 
