@@ -71,12 +71,16 @@ impl<const N: usize> Bounds<N> {
     pub fn clamp(&self, theta: &Vector<N>) -> Vector<N> {
         Vector::from_fn(|i, _| {
             let v = theta[i];
-            if v.is_nan() {
-                self.lower[i]
+            // Comparisons, not `f32::clamp` (its `min <= max` assertion is a panic path the
+            // compiler cannot remove) nor `max`/`min` (library calls on a Cortex-M4F, which
+            // has no VMAXNM). Both ordered tests are false for NaN, hence the first branch.
+            let (lower, upper) = (self.lower[i], self.upper[i]);
+            if v.is_nan() || v < lower {
+                lower
+            } else if v > upper {
+                upper
             } else {
-                // Not `f32::clamp`: its `min <= max` assertion is a panic path the
-                // compiler cannot remove (`lower < upper` is an invariant of `try_new`).
-                v.max(self.lower[i]).min(self.upper[i])
+                v
             }
         })
     }
@@ -95,9 +99,11 @@ impl<const N: usize> Bounds<N> {
     /// A point drawn uniformly from the box.
     pub fn sample_uniform<R: RngCore + ?Sized>(&self, rng: &mut R) -> Vector<N> {
         Vector::from_fn(|i, _| {
-            let v = self.lower[i] + unit_f32(rng) * (self.upper[i] - self.lower[i]);
-            // `lower + u·width` can round up to just past `upper`.
-            v.min(self.upper[i])
+            let upper = self.upper[i];
+            let v = self.lower[i] + unit_f32(rng) * (upper - self.lower[i]);
+            // `lower + u·width` can round up to just past `upper` (a comparison: `min` is a
+            // library call on a Cortex-M4F).
+            if v > upper { upper } else { v }
         })
     }
 }

@@ -118,6 +118,30 @@ pub trait Optimizer<const N: usize> {
     fn bounds(&self) -> &Bounds<N>;
 }
 
+/// The checks every optimizer's configuration ends with: a finite stopping tolerance ≥ 0
+/// (`None` for an optimizer that has none) and a budget of at least one evaluation.
+pub(crate) fn check_stopping(tolerance: Option<f32>, max_evaluations: u32) -> Result<(), Error> {
+    if tolerance.is_some_and(|t| !(t.is_finite() && t >= 0.0)) {
+        return Err(Error::InvalidParameter("tolerance"));
+    }
+    if max_evaluations == 0 {
+        return Err(Error::InvalidParameter("max_evaluations"));
+    }
+    Ok(())
+}
+
+/// `impl Default` as the configuration's `DEFAULT` constant, for each type named.
+macro_rules! default_is_const {
+    ($($config:ty),+) => {
+        $(impl Default for $config {
+            fn default() -> Self {
+                Self::DEFAULT
+            }
+        })+
+    };
+}
+pub(crate) use default_is_const;
+
 /// Inserts `sample` into `kept`, sorted by `cost` (ties after the samples told before), if
 /// it is among the best `room` so far; the worst drops out when `kept` holds `room` already.
 /// Shared by the batch algorithms that keep only their elites of a batch.

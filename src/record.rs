@@ -49,7 +49,7 @@ use serde::de::DeserializeOwned;
 
 /// The version of the record layout and of every type's encoding. It changes whenever a
 /// saved field is added, removed or reordered: a record of another version is refused.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 
 /// The most words a [`Shape`] holds (a compile-time error beyond).
 pub const SHAPE_CAPACITY: usize = 32;
@@ -579,19 +579,20 @@ mod tests {
             Err(RecordError::Shape)
         );
         let mut other = record.clone();
-        other[0] = 2; // FORMAT_VERSION is a one-byte varint
+        let found = FORMAT_VERSION + 1;
+        other[0] = u8::try_from(found).unwrap(); // FORMAT_VERSION is a one-byte varint
         let end = other.len() - 4;
         let checksum = CHECKSUM.checksum(&other[..end]).to_le_bytes();
         other[end..].copy_from_slice(&checksum);
         assert_eq!(
             load::<Cmaes<3, 7>>(&other),
-            Err(RecordError::Version { found: 2 })
+            Err(RecordError::Version { found })
         );
         extern crate alloc;
         use alloc::string::ToString;
         assert_eq!(
-            RecordError::Version { found: 2 }.to_string(),
-            "the record has format version 2, this build reads 1"
+            RecordError::Version { found: 1 }.to_string(),
+            "the record has format version 1, this build reads 2"
         );
     }
 

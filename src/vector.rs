@@ -7,20 +7,20 @@ use nalgebra::SVector;
 /// single precision, `f64` would be emulated in software).
 pub type Vector<const N: usize> = SVector<f32, N>;
 
-/// Calls `body(i)` for every i in 0..N, in order, as straight-line code when N ≤ 16.
+/// Calls `body(i)` for every i in 0..N, in order, as straight-line code when N ≤ 32.
 ///
 /// Firmware ships at opt-level "s", where LLVM keeps short loops rolled: the policy
 /// correction's 18 multiply-adds cost 310 instructions there as loops (counter, bounds,
-/// iterator state per term) against about 70 unrolled. Each of the 16 calls below is guarded
+/// iterator state per term) against about 70 unrolled. Each of the 32 calls below is guarded
 /// by a comparison of two constants, which the compiler folds away, so exactly N calls remain
-/// with constant indices (their bounds checks fold too). Beyond 16 it is an ordinary loop.
+/// with constant indices (their bounds checks fold too). Beyond 32 it is an ordinary loop.
 #[inline(always)]
 pub(crate) fn unrolled<const N: usize>(mut body: impl FnMut(usize)) {
     macro_rules! guarded {
         ($($i:literal)*) => { $( if $i < N { body($i); } )* };
     }
-    if N <= 16 {
-        guarded!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+    if N <= 32 {
+        guarded!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31);
     } else {
         (0..N).for_each(body);
     }

@@ -98,8 +98,8 @@
 use heapless::Vec;
 use rand_core::RngCore;
 
-use super::ledger_accessors;
 use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, keep_ranked, normal_pair_f32};
+use super::{check_stopping, default_is_const, ledger_accessors};
 
 /// How the costs of a batch become the probabilities P_k of the update (paper section 3.3).
 /// Every scheme gives weights that are non-negative, sum to 1 and do not increase with cost.
@@ -240,13 +240,7 @@ impl CemConfig {
         if !non_negative(self.exploration_floor) {
             return Err(Error::InvalidParameter("exploration_floor"));
         }
-        if !non_negative(self.tolerance) {
-            return Err(Error::InvalidParameter("tolerance"));
-        }
-        if self.max_evaluations == 0 {
-            return Err(Error::InvalidParameter("max_evaluations"));
-        }
-        Ok(())
+        check_stopping(Some(self.tolerance), self.max_evaluations)
     }
 
     fn within_limits(&self, variance: f32) -> bool {
@@ -254,11 +248,7 @@ impl CemConfig {
     }
 }
 
-impl Default for CemConfig {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
-}
+default_is_const!(CemConfig);
 
 /// A told sample kept for the update.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -116,8 +116,8 @@ use nalgebra::{
 };
 use rand_core::RngCore;
 
-use super::ledger_accessors;
 use super::{Ledger, Optimizer, Status, keep_ranked};
+use super::{check_stopping, default_is_const, ledger_accessors};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
 use crate::{Bounds, Error, Vector};
@@ -237,21 +237,11 @@ impl CmaesConfig {
         if self.eigen_interval == 0 {
             return Err(Error::InvalidParameter("eigen_interval"));
         }
-        if !non_negative(self.tolerance) {
-            return Err(Error::InvalidParameter("tolerance"));
-        }
-        if self.max_evaluations == 0 {
-            return Err(Error::InvalidParameter("max_evaluations"));
-        }
-        Ok(())
+        check_stopping(Some(self.tolerance), self.max_evaluations)
     }
 }
 
-impl Default for CmaesConfig {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
-}
+default_is_const!(CmaesConfig);
 
 /// The strategy parameters of the tutorial's table 1 for n = N, λ = L.
 #[derive(Debug, Clone, Copy, PartialEq)]

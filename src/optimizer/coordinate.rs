@@ -53,8 +53,8 @@
 
 use rand_core::RngCore;
 
-use super::ledger_accessors;
 use super::{Bounds, Error, Ledger, Optimizer, Status, Vector};
+use super::{check_stopping, default_is_const, ledger_accessors};
 
 /// Parameters of [`CoordinateSearch`]. Plain fields, checked by [`CoordinateConfig::validate`]
 /// (and by the optimizer's constructors).
@@ -105,18 +105,11 @@ impl CoordinateConfig {
         if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
             return Err(Error::InvalidParameter("tolerance"));
         }
-        if self.max_evaluations == 0 {
-            return Err(Error::InvalidParameter("max_evaluations"));
-        }
-        Ok(())
+        check_stopping(None, self.max_evaluations)
     }
 }
 
-impl Default for CoordinateConfig {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
-}
+default_is_const!(CoordinateConfig);
 
 /// Where the state machine stands; the next candidate follows from it.
 #[derive(Debug, Clone, Copy, PartialEq)]

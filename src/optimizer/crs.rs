@@ -27,8 +27,9 @@
 
 use rand_core::RngCore;
 
-use super::ledger_accessors;
 use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, random_index};
+use super::{check_stopping, default_is_const, ledger_accessors};
+use crate::vector::unrolled;
 
 /// Parameters of [`ControlledRandomSearch`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,12 +54,7 @@ impl CrsConfig {
 
     /// `Ok` when every parameter is in its range, else the first offending field.
     pub fn validate(&self) -> Result<(), Error> {
-        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
-            return Err(Error::InvalidParameter("tolerance"));
-        }
-        if self.max_evaluations == 0 {
-            return Err(Error::InvalidParameter("max_evaluations"));
-        }
+        check_stopping(Some(self.tolerance), self.max_evaluations)?;
         if self.max_redraws == 0 {
             return Err(Error::InvalidParameter("max_redraws"));
         }
@@ -66,11 +62,7 @@ impl CrsConfig {
     }
 }
 
-impl Default for CrsConfig {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
-}
+default_is_const!(CrsConfig);
 
 /// Controlled Random Search over a box with a set of `M` points in R^N (M ≥ N + 1; Price
 /// suggests M ≈ 10(N + 1)). State: (4N + 4)·M bytes plus the bounds.
@@ -103,6 +95,9 @@ pub struct ControlledRandomSearch<const N: usize, const M: usize> {
     filled: usize,
     /// (J_max⁰ − J_min⁰)/2, halved so that it is finite for any finite costs.
     initial_spread: f32,
+    /// (index of the worst point, J_max, J_min) of the full set, kept up to date by `tell`
+    /// so that neither `ask` nor the stopping test scans the set again.
+    extremes: (usize, f32, f32),
     /// A permutation of 0..M, partially reshuffled for each subset draw.
     #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     order: [u16; M],
@@ -122,6 +117,7 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
             costs: [0.0; M],
             filled: 0,
             initial_spread: 0.0,
+            extremes: (0, 0.0, 0.0),
             order: core::array::from_fn(|i| i as u16),
             ledger: Ledger::new(config.max_evaluations),
         })
@@ -152,7 +148,7 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
 
     /// Index of the worst point of the (full) set and the worst and best costs,
     /// (worst, J_max, J_min); the first worst in index order.
-    fn extremes(&self) -> (usize, f32, f32) {
+    fn scan_extremes(&self) -> (usize, f32, f32) {
         // Values carried along with the index: no indexing, so no bounds check to prove.
         let first = self.costs.first().copied().unwrap_or(0.0);
         let (mut worst, mut j_max, mut j_min) = (0, first, first);
@@ -165,6 +161,30 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
             }
         }
         (worst, j_max, j_min)
+    }
+
+    /// Index of the worst point of the (full) set and J_max, the first worst in index
+    /// order: [`Self::scan_extremes`] without J_min, four costs per loop turn (at opt-level
+    /// "s" the loop's own bookkeeping would cost as much as the comparisons).
+    fn scan_worst(&self) -> (usize, f32) {
+        let mut worst = (0, self.costs.first().copied().unwrap_or(0.0));
+        let chunks = self.costs.chunks_exact(4);
+        let rest = chunks.remainder();
+        for (k, chunk) in chunks.enumerate() {
+            unrolled::<4>(|j| {
+                if let Some(&c) = chunk.get(j)
+                    && c > worst.1
+                {
+                    worst = (4 * k + j, c);
+                }
+            });
+        }
+        for (j, &c) in rest.iter().enumerate() {
+            if c > worst.1 {
+                worst = (M - rest.len() + j, c);
+            }
+        }
+        worst
     }
 
     /// One trial of Step 2 (may lie outside the box).
@@ -205,11 +225,14 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         let mut weighted_cost = 0.0;
         for (p, &c) in subset.iter().filter_map(|&i| point(i)) {
             let w = 1.0 / (0.5 * c - 0.5 * j_min + phi) / eta_sum;
-            centroid += p * w;
+            // centroid += w·p, element by element (nalgebra's `p * w` builds and copies a
+            // temporary vector; at opt-level "s" that was half of an ask).
+            unrolled::<N>(|k| centroid[k] += p[k] * w);
             weighted_cost += w * (0.5 * c);
         }
         let alpha = 1.0 - (0.5 * worst_cost - weighted_cost) / (spread + phi);
-        centroid - (worst_point - centroid) * alpha
+        unrolled::<N>(|k| centroid[k] -= (worst_point[k] - centroid[k]) * alpha);
+        centroid
     }
 
     /// Step 1's stopping test on the full set.
@@ -217,7 +240,7 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         if self.filled < M {
             return;
         }
-        let (_, j_max, j_min) = self.extremes();
+        let (_, j_max, j_min) = self.extremes;
         if j_max - j_min <= self.config.tolerance {
             self.ledger.stop(Status::Converged);
         }
@@ -232,7 +255,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
         if self.filled < M {
             return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
         }
-        let (_, j_max, j_min) = self.extremes();
+        let (_, j_max, j_min) = self.extremes;
         let mut candidate = self.trial(rng, j_max, j_min);
         let mut redraws = 1;
         while !self.bounds.contains(&candidate) && redraws < self.config.max_redraws {
@@ -244,7 +267,10 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
             candidate = self.trial(rng, j_max, j_min);
             redraws += 1;
         }
-        Ok(self.ledger.hand_out(self.bounds.clamp(&candidate)))
+        if !self.bounds.contains(&candidate) {
+            candidate = self.bounds.clamp(&candidate);
+        }
+        Ok(self.ledger.hand_out(candidate))
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
@@ -257,15 +283,24 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
             (*p, *c) = (theta, cost);
             self.filled += 1;
             if self.filled == M {
-                let (_, j_max, j_min) = self.extremes();
+                self.extremes = self.scan_extremes();
+                let (_, j_max, j_min) = self.extremes;
                 self.initial_spread = 0.5 * j_max - 0.5 * j_min;
             }
         } else {
-            let (worst, j_max, _) = self.extremes();
+            let (worst, j_max, _) = self.extremes;
             if cost < j_max
                 && let (Some(p), Some(c)) = (self.points.get_mut(worst), self.costs.get_mut(worst))
             {
                 (*p, *c) = (theta, cost);
+                // The worst point left; J_min can only have fallen, to this cost.
+                let (worst, j_max) = self.scan_worst();
+                let j_min = if cost < self.extremes.2 {
+                    cost
+                } else {
+                    self.extremes.2
+                };
+                self.extremes = (worst, j_max, j_min);
             }
         }
         self.check_stop();

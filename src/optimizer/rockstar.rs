@@ -173,8 +173,8 @@
 use nalgebra::SMatrix;
 use rand_core::RngCore;
 
-use super::ledger_accessors;
 use super::{Ledger, Optimizer, Status};
+use super::{check_stopping, default_is_const, ledger_accessors};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
 use crate::{Bounds, Error, Vector};
@@ -333,21 +333,11 @@ impl RockstarConfig {
         if self.c_cov.is_some_and(|c| !(c > 0.0 && c < 1.0)) {
             return Err(Error::InvalidParameter("c_cov"));
         }
-        if !non_negative(self.tolerance) {
-            return Err(Error::InvalidParameter("tolerance"));
-        }
-        if self.max_evaluations == 0 {
-            return Err(Error::InvalidParameter("max_evaluations"));
-        }
-        Ok(())
+        check_stopping(Some(self.tolerance), self.max_evaluations)
     }
 }
 
-impl Default for RockstarConfig {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
-}
+default_is_const!(RockstarConfig);
 
 /// The strategy constants for n parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -70,8 +70,8 @@
 
 use rand_core::RngCore;
 
-use super::ledger_accessors;
 use super::{Best, Bounds, Error, Ledger, Optimizer, Vector, unit_f32};
+use super::{check_stopping, default_is_const, ledger_accessors};
 
 mod classifier;
 
@@ -206,10 +206,7 @@ fn validate_common(
     {
         return Err(Error::InvalidParameter("uncertain_bits"));
     }
-    if max_evaluations == 0 {
-        return Err(Error::InvalidParameter("max_evaluations"));
-    }
-    Ok(())
+    check_stopping(None, max_evaluations)
 }
 
 /// The number of uncertain coordinates for dimension `n`, or an error if the configured one
@@ -265,11 +262,7 @@ impl SracosConfig {
     }
 }
 
-impl Default for SracosConfig {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
-}
+default_is_const!(SracosConfig);
 
 /// Parameters of [`Racos`]; checked by [`RacosConfig::validate`] and the constructor.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -302,11 +295,7 @@ impl RacosConfig {
     }
 }
 
-impl Default for RacosConfig {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
-}
+default_is_const!(RacosConfig);
 
 /// The positive and negative sets, filled by the r initial samples and then of fixed size.
 #[derive(Debug, Clone, Copy, PartialEq)]
