@@ -10,11 +10,9 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use ctrl_adapt::optimizer::cmaes::SymmetricEigenSize;
 use ctrl_adapt::optimizer::{Bounds, Cmaes, CmaesConfig, Optimizer, Vector};
 use host_tests::functions::sphere;
 use host_tests::run;
-use nalgebra::Const;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -22,10 +20,7 @@ const SEED: u64 = 1;
 const REPETITIONS: usize = 9;
 const MIN_PAIRS_PER_REPETITION: usize = 20_000;
 
-fn bench<const N: usize, const L: usize>(eigen_interval: u32)
-where
-    Const<N>: SymmetricEigenSize<N>,
-{
+fn bench<const N: usize, const L: usize>(eigen_interval: u32) {
     let make = || {
         Cmaes::<N, L>::try_new(
             Bounds::uniform(-1.0, 1.0).expect("valid box"),

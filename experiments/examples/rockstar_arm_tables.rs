@@ -26,8 +26,8 @@
 //!   deviation is printed; the smallest mean picks the tuned value.
 //!
 //! **CMA-ES is omitted from the 500- and 400-parameter rows**: the library's `Cmaes<N, L>`
-//! needs N ≤ 127 (nalgebra's static eigendecomposition), and no second CMA-ES is written
-//! for this. PI-BB ([`DiagonalCem`] with [`Weighting::PiBb`], K = 10) runs in two forms,
+//! needed N ≤ 127 (nalgebra's static eigendecomposition) when they were written; it no
+//! longer does, and adding its rows is left to do. PI-BB ([`DiagonalCem`] with [`Weighting::PiBb`], K = 10) runs in two forms,
 //! fixed exploration (PI-BB as Stulp & Sigaud define it) and adapted diagonal covariance
 //! with a floor (PI²-CMA style); the table reports both. PI² (the paper's last column) has
 //! no counterpart here.

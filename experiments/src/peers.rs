@@ -338,10 +338,7 @@ fn run_n<const N: usize, const L: usize>(
     trial: &mut Trial,
     budget: u32,
     seed: u64,
-) -> Option<RunReport>
-where
-    nalgebra::Const<N>: ctrl_adapt::optimizer::cmaes::SymmetricEigenSize<N>,
-{
+) -> Option<RunReport> {
     let bounds = Bounds::<N>::try_new(to_vector(trial.lower())?, to_vector(trial.upper())?).ok()?;
     let start: Vector<N> = to_vector(trial.start())?;
     // Steps and σ in half-widths of the box where the task has no better scale: a quarter of

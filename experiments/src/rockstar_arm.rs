@@ -20,12 +20,10 @@
 //! (`std`): σ₀ = `std` / half-width for [`Rockstar`] and [`Cmaes`] (both search in
 //! box-normalised coordinates), an initial variance `std`² for [`DiagonalCem`].
 
-use ctrl_adapt::optimizer::cmaes::SymmetricEigenSize;
 use ctrl_adapt::optimizer::{
     Bounds, CemConfig, Cmaes, CmaesConfig, DiagonalCem, Error, Optimizer, Rockstar, RockstarConfig,
     Status, Vector, Weighting,
 };
-use nalgebra::Const;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -112,7 +110,7 @@ pub fn rockstar<const N: usize, const M: usize>(
 }
 
 /// CMA-ES with population `L`, σ₀ = `std`/half-width, no stopping tolerance and the
-/// library's defaults otherwise (N ≤ 127).
+/// library's defaults otherwise.
 pub fn cmaes<const N: usize, const L: usize>(
     bounds: Bounds<N>,
     start: Vector<N>,
@@ -121,10 +119,7 @@ pub fn cmaes<const N: usize, const L: usize>(
     rollouts: usize,
     seed: u64,
     cost: &mut impl FnMut(&Vector<N>) -> f32,
-) -> Result<Session, Error>
-where
-    Const<N>: SymmetricEigenSize<N>,
-{
+) -> Result<Session, Error> {
     let config = CmaesConfig {
         initial_sigma: std / half_width,
         tolerance: 0.0,
@@ -218,7 +213,7 @@ pub fn mean_curve(sessions: &[Session]) -> Vec<f64> {
 pub enum Method {
     /// [`Rockstar`] with M = 5n.
     Rockstar,
-    /// [`Cmaes`] (n ≤ 127 only).
+    /// [`Cmaes`].
     Cmaes,
     /// [`pibb`] with [`PiBbExploration::Fixed`].
     PiBbFixed,

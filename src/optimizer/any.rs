@@ -10,9 +10,8 @@
 
 use super::{
     Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Optimizer, Rockstar, Sracos,
-    TwoPhase, cmaes::SymmetricEigenSize,
+    TwoPhase,
 };
-use nalgebra::Const;
 
 /// Forwards every method of [`Optimizer<N>`](crate::optimizer::Optimizer) to the
 /// single-field tuple variants of an enum. Write the `impl` header yourself (with your
@@ -132,8 +131,6 @@ pub enum AnyOptimizer<const N: usize, const L: usize = 12, const E: usize = 6, c
 
 impl<const N: usize, const L: usize, const E: usize, const M: usize> Optimizer<N>
     for AnyOptimizer<N, L, E, M>
-where
-    Const<N>: SymmetricEigenSize<N>,
 {
     crate::forward_optimizer!(Coordinate, Crs, TwoPhase, Sracos, Cem, Cmaes, Rockstar);
 }

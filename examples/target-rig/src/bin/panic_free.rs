@@ -4,7 +4,8 @@
 //! * every optimizer's `ask`/`tell` and accessors at N = 18: `CoordinateSearch` (both
 //!   constructors), `Sracos` (every replacement strategy, with and without value
 //!   suppression), `Racos`, `DiagonalCem` (every weighting, fixed and adapted covariance),
-//!   `ControlledRandomSearch`, `TwoPhase`, `Rockstar` (memory 90 = 5n); and `Bounds`,
+//!   `ControlledRandomSearch`, `TwoPhase`, `Rockstar` (memory 90 = 5n), `Cmaes` (λ = 12,
+//!   active weights, a decomposition every generation); and `Bounds`,
 //!   `unit_f32`, `normal_pair_f32`;
 //! * the controller layer: `Pd` (output, update, limits), `LinearPolicy`, `CorrectedPd`, and
 //!   the AUV `Adapter`'s whole API (`begin_episode`, `control` on finite and non-finite
@@ -31,7 +32,7 @@ use ctrl_adapt::controller::{
 use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
-    Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
+    Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
     DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Rockstar, RockstarConfig, Sracos,
     SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
 };
@@ -237,7 +238,30 @@ fn other_optimizers(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
         black_box((t.phase(), t.global().best(), t.local().map(|l| l.best())));
     }
     told += rockstar(rng, bounds);
+    told += cmaes(rng, bounds);
     black_box(normal_pair_f32(rng));
+    told
+}
+
+/// CMA-ES (λ = 12, the default at n = 18) with a configuration the compiler cannot see, and
+/// its accessors: the eigendecomposition runs at every generation.
+fn cmaes(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
+    let config = CmaesConfig {
+        initial_sigma: black_box(0.3),
+        max_sigma: black_box(4.0),
+        penalty: black_box(1.0),
+        eigen_interval: black_box(1),
+        tolerance: black_box(1e-6),
+        max_evaluations: black_box(600),
+        active: black_box(true),
+    };
+    let Ok(mut c) = Cmaes::<N, 12>::try_new(bounds, bounds.sample_uniform(rng), config) else {
+        exit_failure()
+    };
+    let told = drive(&mut c, rng, u32::MAX);
+    black_box((c.mean(), c.normalised_mean(), c.sigma(), c.covariance()));
+    black_box((c.axis_ratio(), c.parents(), c.generations()));
+    black_box((c.told_in_generation(), c.recoveries(), c.config()));
     told
 }
 
