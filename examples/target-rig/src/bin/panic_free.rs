@@ -32,9 +32,9 @@ use ctrl_adapt::controller::{
 use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
-    Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
-    DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Rockstar, RockstarConfig, Sracos,
-    SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
+    Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
+    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Rockstar,
+    RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
 };
 use ctrl_adapt_firmware::{exit_failure, exit_success};
 use pil_link::{
