@@ -11,7 +11,7 @@ pub type Vector<const N: usize> = SVector<f32, N>;
 ///
 /// Firmware ships at opt-level "s", where LLVM keeps short loops rolled: the policy
 /// correction's 18 multiply-adds cost 310 instructions there as loops (counter, bounds,
-/// iterator state per term) against about 70 unrolled. Each of the 32 calls below is guarded
+/// iterator state per term) against 85 unrolled. Each of the 32 calls below is guarded
 /// by a comparison of two constants, which the compiler folds away, so exactly N calls remain
 /// with constant indices (their bounds checks fold too). Beyond 32 it is an ordinary loop.
 #[inline(always)]

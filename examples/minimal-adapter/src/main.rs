@@ -15,7 +15,7 @@
 
 use cortex_m as _; // its critical-section implementation (single core), used by the logger
 use ctrl_adapt::controller::{
-    Adapter, AdapterConfig, CorrectedPd, LinearPolicy, Pd, StateFeatures,
+    Adapter, AdapterConfig, CorrectedPd, IdentityFeatures, LinearPolicy, Pd,
 };
 use ctrl_adapt::cost::QuadraticCost;
 use ctrl_adapt::{Bounds, CoordinateConfig, CoordinateSearch, Error, Vector};
@@ -25,7 +25,7 @@ use rand_xoshiro::Xoshiro128PlusPlus;
 
 /// The corrected PD: 1 action, 2 state values [error, velocity], 2 features (the state
 /// itself), 2 parameters (the correction's gains).
-type Controller = CorrectedPd<1, 2, 2, 2, StateFeatures<2>>;
+type Controller = CorrectedPd<1, 2, 2, 2, IdentityFeatures>;
 /// The adapter: optimizer, controller, cost shaper; P = 2 parameters, S = 2, A = 1.
 type MyAdapter = Adapter<CoordinateSearch<2>, Controller, QuadraticCost<1>, 2, 2, 1>;
 
@@ -43,7 +43,7 @@ fn build_adapter() -> Result<MyAdapter, Error> {
     let pd = Pd::<1>::try_new(Vector::repeat(4.0), Vector::repeat(3.6))?
         .with_limit(Vector::repeat(5.0))?;
     // The correction c = clamp(W·[error, velocity]), |c| ≤ 3 m/s².
-    let policy = LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(3.0))?;
+    let policy = LinearPolicy::try_new(IdentityFeatures, Vector::repeat(3.0))?;
     let controller: Controller = CorrectedPd::new(pd, policy);
     // W ∈ [−20, 20]², searched from the zero correction (the bare PD).
     let search = CoordinateSearch::try_new(
