@@ -9,6 +9,8 @@ use rand_xoshiro::Xoshiro128PlusPlus;
 
 use crate::optimizer::{Best, Optimizer, Status};
 use crate::random::unit_f32;
+use nalgebra::SMatrix;
+
 use crate::{Bounds, Error, Vector};
 
 /// The tests' RNG, seeded (xoshiro128++, as in the firmware examples).
@@ -114,4 +116,26 @@ pub(crate) fn any_wide_bounds<const N: usize>() -> impl Strategy<Value = Bounds<
         let upper = Vector::from(pairs.map(|(lo, e)| lo + libm::powf(10.0, e)));
         Bounds::try_new(lower, upper).unwrap()
     })
+}
+
+/// A fixed rotation of R¹⁰ (for the ill-conditioned test problems of `Cmaes` and `Rockstar`): the product of two Householder reflections.
+pub(crate) fn rotation() -> SMatrix<f32, 10, 10> {
+    let reflect = |v: Vector<10>| {
+        SMatrix::<f32, 10, 10>::identity() - v * v.transpose() * (2.0 / v.norm_squared())
+    };
+    let a = Vector::<10>::from_fn(|i, _| (i + 1) as f32);
+    let b = Vector::<10>::from_fn(|i, _| (10 - i) as f32 * if i % 2 == 0 { 1.0 } else { -0.5 });
+    reflect(a) * reflect(b)
+}
+
+/// The rotated ellipsoid Σ cond^{i/9} (R(θ − 0.3))_i²: condition number `cond`, axes
+/// not aligned with the coordinates, minimum 0 at θ = 0.3·1.
+pub(crate) fn ellipsoid(cond: f32) -> impl Fn(&Vector<10>) -> f32 {
+    let r = rotation();
+    move |t: &Vector<10>| {
+        let z = r * (t - Vector::repeat(0.3));
+        (0..10)
+            .map(|i| libm::powf(cond, i as f32 / 9.0) * z[i] * z[i])
+            .sum()
+    }
 }

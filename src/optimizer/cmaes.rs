@@ -676,7 +676,9 @@ impl<const N: usize, const L: usize> Optimizer<N> for Cmaes<N, L> {
 mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
-    use crate::testing::{any_bounds, check_rejected_calls_change_nothing, rng, trace};
+    use crate::testing::{
+        any_bounds, check_rejected_calls_change_nothing, ellipsoid, rng, rotation, trace,
+    };
     use proptest::prelude::*;
 
     fn config(initial_sigma: f32, max_evaluations: u32) -> CmaesConfig {
@@ -684,28 +686,6 @@ mod tests {
             initial_sigma,
             max_evaluations,
             ..CmaesConfig::DEFAULT
-        }
-    }
-
-    /// A fixed rotation of R¹⁰: the product of two Householder reflections.
-    fn rotation() -> SMatrix<f32, 10, 10> {
-        let reflect = |v: Vector<10>| {
-            SMatrix::<f32, 10, 10>::identity() - v * v.transpose() * (2.0 / v.norm_squared())
-        };
-        let a = Vector::<10>::from_fn(|i, _| (i + 1) as f32);
-        let b = Vector::<10>::from_fn(|i, _| (10 - i) as f32 * if i % 2 == 0 { 1.0 } else { -0.5 });
-        reflect(a) * reflect(b)
-    }
-
-    /// The rotated ellipsoid Σ cond^{i/9} (R(θ − 0.3))_i²: condition number `cond`, axes
-    /// not aligned with the coordinates, minimum 0 at θ = 0.3·1.
-    fn ellipsoid(cond: f32) -> impl Fn(&Vector<10>) -> f32 {
-        let r = rotation();
-        move |t: &Vector<10>| {
-            let z = r * (t - Vector::repeat(0.3));
-            (0..10)
-                .map(|i| libm::powf(cond, i as f32 / 9.0) * z[i] * z[i])
-                .sum()
         }
     }
 

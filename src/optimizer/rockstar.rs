@@ -1114,7 +1114,8 @@ mod tests {
     use super::*;
     use crate::optimizer::{Best, Cmaes, CmaesConfig};
     use crate::testing::{
-        any_wide_bounds, check_call_order, check_rejected_calls_change_nothing, rng, trace,
+        any_wide_bounds, check_call_order, check_rejected_calls_change_nothing, ellipsoid, rng,
+        rotation, trace,
     };
     use proptest::prelude::*;
     use rand_xoshiro::Xoshiro128PlusPlus;
@@ -1130,28 +1131,6 @@ mod tests {
 
     fn sphere<const D: usize>(t: &Vector<D>) -> f32 {
         (t - Vector::repeat(0.3)).norm_squared()
-    }
-
-    /// A fixed rotation of R¹⁰: the product of two Householder reflections.
-    fn rotation() -> SMatrix<f32, 10, 10> {
-        let reflect = |v: Vector<10>| {
-            SMatrix::<f32, 10, 10>::identity() - v * v.transpose() * (2.0 / v.norm_squared())
-        };
-        let a = Vector::<10>::from_fn(|i, _| (i + 1) as f32);
-        let b = Vector::<10>::from_fn(|i, _| (10 - i) as f32 * if i % 2 == 0 { 1.0 } else { -0.5 });
-        reflect(a) * reflect(b)
-    }
-
-    /// The rotated ellipsoid Σ cond^{i/9} (R(θ − 0.3))_i²: condition number `cond`, axes
-    /// not aligned with the coordinates, minimum 0 at θ = 0.3·1.
-    fn ellipsoid(cond: f32) -> impl Fn(&Vector<10>) -> f32 {
-        let r = rotation();
-        move |t: &Vector<10>| {
-            let z = r * (t - Vector::repeat(0.3));
-            (0..10)
-                .map(|i| libm::powf(cond, i as f32 / 9.0) * z[i] * z[i])
-                .sum()
-        }
     }
 
     /// Runs `opt` on `f` until it stops; returns the evaluations at which the best cost
