@@ -99,6 +99,20 @@ pub(crate) fn trace<const N: usize, O: Optimizer<N>>(
     out
 }
 
+/// Checks that a run (see [`trace`]) depends on the seed only: seed 42 twice gives the same
+/// candidates and costs, seed 43 others. Returns the run's length.
+pub(crate) fn check_seeded<const N: usize, O: Optimizer<N> + Clone>(
+    s: &O,
+    noise: f32,
+    objective: impl Fn(&Vector<N>) -> f32 + Copy,
+) -> usize {
+    let run = |seed: u64| trace(s.clone(), seed, noise, objective);
+    let first = run(42);
+    assert_eq!(first, run(42), "the same seed, the same run");
+    assert_ne!(first, run(43), "another seed, another run");
+    first.len()
+}
+
 /// Boxes with corners in ±10³ and widths from `min_width` to 10³, for property tests.
 pub(crate) fn any_bounds<const N: usize>(min_width: f32) -> impl Strategy<Value = Bounds<N>> {
     prop::array::uniform::<_, N>((-1e3f32..1e3, min_width..1e3)).prop_map(|pairs| {

@@ -488,7 +488,7 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{any_bounds, check_call_order, rng, trace};
+    use crate::testing::{any_bounds, check_call_order, check_seeded, rng};
     use proptest::prelude::*;
 
     fn weights_of(weighting: Weighting, sorted: &[f32], worst: f32) -> std::vec::Vec<f32> {
@@ -778,10 +778,7 @@ mod tests {
             ..config(Weighting::PiBb { h: 10.0 }, 0.3)
         };
         let cem = DiagonalCem::<4, 8>::try_new(bounds, Vector::zeros(), cfg).unwrap();
-        let trace = |seed: u64| trace(cem.clone(), seed, 0.01, |t| t.norm());
-        assert_eq!(trace(42).len(), 300);
-        assert_eq!(trace(42), trace(42));
-        assert_ne!(trace(42), trace(43));
+        assert_eq!(check_seeded(&cem, 0.01, |t| t.norm()), 300);
     }
 
     /// Checks: every invalid configuration field, initial variance and mean is rejected

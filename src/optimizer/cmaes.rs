@@ -677,7 +677,7 @@ mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
     use crate::testing::{
-        any_bounds, check_rejected_calls_change_nothing, ellipsoid, rng, rotation, trace,
+        any_bounds, check_rejected_calls_change_nothing, check_seeded, ellipsoid, rng, rotation,
     };
     use proptest::prelude::*;
 
@@ -1141,9 +1141,7 @@ mod tests {
     fn identical_seeds_give_identical_runs() {
         let bounds = Bounds::<5>::uniform(-2.0, 2.0).unwrap();
         let cma = Cmaes::<5, 8>::try_new(bounds, Vector::zeros(), config(0.3, 200)).unwrap();
-        let trace = |seed: u64| trace(cma.clone(), seed, 0.0, |t| t.norm());
-        assert_eq!(trace(42), trace(42));
-        assert_ne!(trace(42), trace(43));
+        assert_eq!(check_seeded(&cma, 0.0, |t| t.norm()), 200);
     }
 
     /// Checks: every invalid configuration field and mean is rejected with the error

@@ -434,7 +434,7 @@ impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
 mod tests {
     use super::*;
     use crate::optimizer::Best;
-    use crate::testing::{any_bounds, check_call_order, rng, trace};
+    use crate::testing::{any_bounds, check_call_order, check_seeded, rng};
     use proptest::prelude::*;
 
     /// Runs the search to its stop (or `budget` evaluations) and returns the best.
@@ -566,10 +566,7 @@ mod tests {
         // the same sequence of candidates and costs, another seed a different one.
         let bounds = Bounds::<3>::uniform(-2.0, 2.0).unwrap();
         let s = CoordinateSearch::try_new(bounds, Vector::zeros(), config(0.5, 1e-4)).unwrap();
-        let trace = |seed: u64| trace(s, seed, 0.01, ellipsoid);
-        assert!(trace(42).len() > 20);
-        assert_eq!(trace(42), trace(42));
-        assert_ne!(trace(42), trace(43));
+        assert!(check_seeded(&s, 0.01, ellipsoid) > 20);
     }
 
     #[test]
