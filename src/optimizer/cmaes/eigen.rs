@@ -8,8 +8,9 @@
 //! in the old basis B the matrix Bᵀ C B is already nearly diagonal and a few sweeps finish
 //! it. And this code has no panic path: every index is a loop variable below N, which the
 //! compiler proves, where nalgebra's decomposition kept four panic sites in the firmware.
-//! The eigenvectors come out as B·J₁·J₂·… (the rotations applied to B's columns), so they
-//! stay orthonormal to rounding.
+//! The eigenvectors come out as B·J₁·J₂·… (the rotations applied to B's columns); one
+//! Gram–Schmidt pass before each decomposition keeps that product from drifting away from
+//! orthonormal over many warm starts.
 
 use nalgebra::SMatrix;
 
@@ -27,12 +28,11 @@ pub(super) fn symmetric_eigen<const N: usize>(
     covariance: &SMatrix<f32, N, N>,
     basis: &SMatrix<f32, N, N>,
 ) -> Option<(SMatrix<f32, N, N>, Vector<N>)> {
-    // A = Bᵀ C B, symmetrised; stored by columns (a[j][i] = A_ij, only i ≤ j used), as is
-    // V = B.
     // Rounding in the rotations leaves B orthonormal only to a few units of rounding per
     // decomposition; warm start after warm start that would add up, and Bᵀ C B would no
     // longer be a similarity. So B is re-orthonormalised first (its columns are nearly
-    // orthonormal, so one Gram–Schmidt pass suffices).
+    // orthonormal, so one Gram–Schmidt pass suffices). V starts as B, A = Bᵀ C B is stored
+    // by columns (a[j][i] = A_ij, only i ≤ j used).
     let mut v: [[f32; N]; N] = basis.data.0;
     if !orthonormalise(&mut v) {
         v = SMatrix::<f32, N, N>::identity().data.0;
