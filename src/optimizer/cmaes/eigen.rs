@@ -138,29 +138,21 @@ fn rotate<const N: usize>(
     // The rest of rows and columns p and q: x_p ← c x_p − s x_q, x_q ← s x_p + c x_q for
     // x = A_kp, A_kq (k ≠ p, q). Only the upper triangle is read and kept (A_ij in
     // a[j][i], i < j), so the three ranges of k address A_kp and A_kq differently.
-    let turn = |x_p: &mut f32, x_q: &mut f32| {
-        (*x_p, *x_q) = (c * *x_p - s * *x_q, s * *x_p + c * *x_q);
-    };
+    let turn = |x_p: f32, x_q: f32| (c * x_p - s * x_q, s * x_p + c * x_q);
     for k in 0..p {
-        let (mut y_p, mut y_q) = (a[p][k], a[q][k]);
-        turn(&mut y_p, &mut y_q);
-        (a[p][k], a[q][k]) = (y_p, y_q);
+        (a[p][k], a[q][k]) = turn(a[p][k], a[q][k]);
     }
     for k in p + 1..q {
-        let (mut y_p, mut y_q) = (a[k][p], a[q][k]);
-        turn(&mut y_p, &mut y_q);
-        (a[k][p], a[q][k]) = (y_p, y_q);
+        (a[k][p], a[q][k]) = turn(a[k][p], a[q][k]);
     }
     for k in q + 1..N {
-        let (mut y_p, mut y_q) = (a[k][p], a[k][q]);
-        turn(&mut y_p, &mut y_q);
-        (a[k][p], a[k][q]) = (y_p, y_q);
+        (a[k][p], a[k][q]) = turn(a[k][p], a[k][q]);
     }
     // Columns p and q of V.
     let (left, right) = v.split_at_mut(q);
     if let (Some(col_p), Some(col_q)) = (left.get_mut(p), right.first_mut()) {
         for (x_p, x_q) in col_p.iter_mut().zip(col_q.iter_mut()) {
-            (*x_p, *x_q) = (c * *x_p - s * *x_q, s * *x_p + c * *x_q);
+            (*x_p, *x_q) = turn(*x_p, *x_q);
         }
     }
     true
