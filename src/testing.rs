@@ -153,3 +153,22 @@ pub(crate) fn ellipsoid(cond: f32) -> impl Fn(&Vector<10>) -> f32 {
             .sum()
     }
 }
+
+/// Runs `opt` on `f` until it stops (its RNG seeded with `seed`); returns the evaluations at
+/// which the best cost first fell below `target`, if it did.
+pub(crate) fn evaluations_to_target<const N: usize, O: Optimizer<N>>(
+    opt: &mut O,
+    f: impl Fn(&Vector<N>) -> f32,
+    seed: u64,
+    target: f32,
+) -> Option<u32> {
+    let mut r = rng(seed);
+    let mut hit = None;
+    while let Ok(t) = opt.ask(&mut r) {
+        opt.tell(f(&t)).unwrap();
+        if hit.is_none() && opt.best().is_some_and(|b| b.cost < target) {
+            hit = Some(opt.evaluations());
+        }
+    }
+    hit
+}

@@ -1,11 +1,18 @@
 //! The parameter vector θ, shared by the optimizers (which propose it) and the controllers
 //! (which apply it).
 
-use nalgebra::SVector;
+use nalgebra::{ArrayStorage, SVector};
 
 /// A parameter vector θ ∈ R^N in the on-target number type (`f32`: the Cortex-M4F FPU is
 /// single precision, `f64` would be emulated in software).
 pub type Vector<const N: usize> = SVector<f32, N>;
+
+/// The zero vector, as a constant: `[ZERO; M]` of it is filled in place, where
+/// `[Vector::zeros(); M]` builds the array on the stack and copies it into the struct that
+/// holds it (one more copy of the largest part of an optimizer's state at construction).
+pub(crate) const fn zero<const N: usize>() -> Vector<N> {
+    SVector::from_array_storage(ArrayStorage([[0.0; N]; 1]))
+}
 
 /// Calls `body(i)` for every i in 0..N, in order, as straight-line code when N ≤ 32.
 ///

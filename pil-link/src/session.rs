@@ -38,6 +38,30 @@ pub trait Learner {
     }
 }
 
+/// A learner borrowed for the session: firmware builds its learner once, in place, and lends it,
+/// so the session holds a pointer instead of a second copy of the learner's state on the stack.
+impl<L: Learner + ?Sized> Learner for &mut L {
+    fn start_episode(&mut self, episode: u16, request: &[f32], theta: &mut Values) {
+        (**self).start_episode(episode, request, theta)
+    }
+
+    fn act(&mut self, state: &[f32], action: &mut Values) {
+        (**self).act(state, action)
+    }
+
+    fn fallback(&mut self, last_state: Option<&[f32]>, action: &mut Values) {
+        (**self).fallback(last_state, action)
+    }
+
+    fn end_episode(&mut self, report: &mut Values) {
+        (**self).end_episode(report)
+    }
+
+    fn next_episode(&self) -> u16 {
+        (**self).next_episode()
+    }
+}
+
 /// Counters of link events since the session began.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -87,32 +87,65 @@ macro_rules! forward_optimizer {
     };
 }
 
-/// One of the library's optimizers, chosen at run time.
-///
-/// `N` parameters; `L` is the population of the diagonal CEM and of CMA-ES (the tutorial's
-/// default for n = 18 is 12, [`default_population`](super::cmaes::default_population)), `E`
-/// the CEM's elites, `M` the controlled random search's points (also the global phase of
-/// [`TwoPhase`]) and the rollouts [`Rockstar`] remembers (5n is its recommended memory). Each variant is built with its own `try_new`; `From` wraps it.
-///
-/// ```
-/// use ctrl_adapt::optimizer::{AnyOptimizer, CoordinateConfig, CoordinateSearch, Optimizer};
-/// use ctrl_adapt::{Bounds, Vector};
-/// use rand_core::SeedableRng;
-///
-/// let bounds = Bounds::<2>::uniform(-1.0, 1.0)?;
-/// let search = CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT)?;
-/// let mut any: AnyOptimizer<2> = search.into();
-/// let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
-/// let theta = any.ask(&mut rng)?;
-/// any.tell(theta.norm_squared())?;
-/// assert_eq!(any.evaluations(), 1);
-/// # Ok::<(), ctrl_adapt::Error>(())
-/// ```
-#[derive(Debug, Clone, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub enum AnyOptimizer<const N: usize, const L: usize = 12, const E: usize = 6, const M: usize = 100>
-{
+/// Defines `AnyOptimizer` from one list of its variants: the enum, `Optimizer` forwarded
+/// to every variant, and `From` each variant's optimizer.
+macro_rules! any_optimizer {
+    ($(#[$enum_doc:meta])* ; $($(#[$doc:meta])* $variant:ident($ty:ty),)+) => {
+        $(#[$enum_doc])*
+        #[derive(Debug, Clone, PartialEq)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+        pub enum AnyOptimizer<
+            const N: usize,
+            const L: usize = 12,
+            const E: usize = 6,
+            const M: usize = 100,
+        > {
+            $($(#[$doc])* $variant($ty),)+
+        }
+
+        impl<const N: usize, const L: usize, const E: usize, const M: usize> Optimizer<N>
+            for AnyOptimizer<N, L, E, M>
+        {
+            crate::forward_optimizer!($($variant),+);
+        }
+
+        $(
+            impl<const N: usize, const L: usize, const E: usize, const M: usize> From<$ty>
+                for AnyOptimizer<N, L, E, M>
+            {
+                fn from(optimizer: $ty) -> Self {
+                    Self::$variant(optimizer)
+                }
+            }
+        )+
+    };
+}
+
+any_optimizer!(
+    /// One of the library's optimizers, chosen at run time.
+    ///
+    /// `N` parameters; `L` is the population of the diagonal CEM and of CMA-ES (the tutorial's
+    /// default for n = 18 is 12, [`default_population`](super::cmaes::default_population)), `E`
+    /// the CEM's elites, `M` the controlled random search's points (also the global phase of
+    /// [`TwoPhase`]) and the rollouts [`Rockstar`] remembers (5n is its recommended memory).
+    /// Each variant is built with its own `try_new`; `From` wraps it.
+    ///
+    /// ```
+    /// use ctrl_adapt::optimizer::{AnyOptimizer, CoordinateConfig, CoordinateSearch, Optimizer};
+    /// use ctrl_adapt::{Bounds, Vector};
+    /// use rand_core::SeedableRng;
+    ///
+    /// let bounds = Bounds::<2>::uniform(-1.0, 1.0)?;
+    /// let search = CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT)?;
+    /// let mut any: AnyOptimizer<2> = search.into();
+    /// let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
+    /// let theta = any.ask(&mut rng)?;
+    /// any.tell(theta.norm_squared())?;
+    /// assert_eq!(any.evaluations(), 1);
+    /// # Ok::<(), ctrl_adapt::Error>(())
+    /// ```
+    ;
     /// [`CoordinateSearch`]: the local phase.
     Coordinate(CoordinateSearch<N>),
     /// [`ControlledRandomSearch`]: the global phase.
@@ -126,36 +159,6 @@ pub enum AnyOptimizer<const N: usize, const L: usize = 12, const E: usize = 6, c
     /// [`Cmaes`] with population `L`.
     Cmaes(Cmaes<N, L>),
     /// [`Rockstar`] remembering `M` rollouts.
-    Rockstar(Rockstar<N, M>),
-}
-
-impl<const N: usize, const L: usize, const E: usize, const M: usize> Optimizer<N>
-    for AnyOptimizer<N, L, E, M>
-{
-    crate::forward_optimizer!(Coordinate, Crs, TwoPhase, Sracos, Cem, Cmaes, Rockstar);
-}
-
-macro_rules! from_variant {
-    ($($variant:ident($ty:ty)),+ $(,)?) => {
-        $(
-            impl<const N: usize, const L: usize, const E: usize, const M: usize> From<$ty>
-                for AnyOptimizer<N, L, E, M>
-            {
-                fn from(optimizer: $ty) -> Self {
-                    Self::$variant(optimizer)
-                }
-            }
-        )+
-    };
-}
-
-from_variant!(
-    Coordinate(CoordinateSearch<N>),
-    Crs(ControlledRandomSearch<N, M>),
-    TwoPhase(TwoPhase<ControlledRandomSearch<N, M>, N>),
-    Sracos(Sracos<N>),
-    Cem(DiagonalCem<N, L, E>),
-    Cmaes(Cmaes<N, L>),
     Rockstar(Rockstar<N, M>),
 );
 

@@ -121,6 +121,7 @@ use super::{Ledger, Optimizer, Status, keep_ranked};
 use super::{check_stopping, default_is_const, ledger_accessors};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
+use crate::vector::unrolled;
 use crate::{Bounds, Error, Vector};
 
 mod eigen;
@@ -185,6 +186,17 @@ where
             Vector::from_array_storage(ArrayStorage(values)),
         ))
     }
+}
+
+/// The N × N identity, at compile time.
+const fn identity<const N: usize>() -> SMatrix<f32, N, N> {
+    let mut columns = [[0.0; N]; N];
+    let mut j = 0;
+    while j < N {
+        columns[j][j] = 1.0;
+        j += 1;
+    }
+    SMatrix::from_array_storage(ArrayStorage(columns))
 }
 
 /// Parameters of [`Cmaes`]. Plain fields, checked by [`CmaesConfig::validate`] (and by
@@ -425,8 +437,10 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
             unit,
             mean: normalised.map(|v| v.clamp(-1.0, 1.0)),
             sigma: config.initial_sigma,
-            covariance: SMatrix::identity(),
-            basis: SMatrix::identity(),
+            // Constants, copied straight into place: `SMatrix::identity()` would assemble
+            // each matrix on the stack first (1.3 KB at N = 18) and then move it in.
+            covariance: const { identity::<N>() },
+            basis: const { identity::<N>() },
             scales: Vector::repeat(1.0),
             p_sigma: Vector::zeros(),
             p_c: Vector::zeros(),
@@ -499,7 +513,17 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
 
     /// y = B D z.
     fn step_of(&self, z: &Vector<N>) -> Vector<N> {
-        self.basis * self.scales.component_mul(z)
+        self.times_basis(&self.scales.component_mul(z))
+    }
+
+    /// B v, column by column (y = Σ_j b_j v_j): `self.basis * v` would take B by value and
+    /// copy it (1.3 KB of stack at N = 18) before multiplying.
+    fn times_basis(&self, v: &Vector<N>) -> Vector<N> {
+        let mut y = Vector::<N>::zeros();
+        for (b_j, v_j) in self.basis.column_iter().zip(v.iter()) {
+            unrolled::<N>(|i| y[i] += b_j[i] * v_j);
+        }
+        y
     }
 
     /// Keeps `sample` if it is among the μ best of the generation so far (all L with
@@ -526,7 +550,7 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
         let mean = self.mean + step * self.sigma;
 
         // C^{−1/2} ⟨y⟩_w = B D⁻¹ Bᵀ B D ⟨z⟩_w = B ⟨z⟩_w (module docs, deviations).
-        let white = self.basis * z_mean;
+        let white = self.times_basis(&z_mean);
         let p_sigma = self.p_sigma * (1.0 - k.c_sigma)
             + white * libm::sqrtf(k.c_sigma * (2.0 - k.c_sigma) * k.mu_eff);
         let path_generations = self.path_generations.saturating_add(1);
@@ -538,29 +562,55 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
             + step * (h_sigma * libm::sqrtf(k.c_c * (2.0 - k.c_c) * k.mu_eff));
 
         let delta = (1.0 - h_sigma) * k.c_c * (2.0 - k.c_c);
-        let mut c = self.covariance * (1.0 - k.c_1 - k.c_mu + k.c_1 * delta);
-        c.ger(k.c_1, &p_c, &p_c, 1.0);
+        // C is updated in place: a copy of it, and nalgebra's temporaries for the scaled and
+        // the transposed matrix, would be 1.3 KB of stack each at N = 18. Nothing is lost if
+        // the update turns out non-finite: `recover` below resets C to the identity then.
+        //
+        // Active CMA-ES (ranks μ+1..λ with w_i° = w_i n/‖C^{−1/2} y_i‖², where
+        // ‖C^{−1/2} y‖ = ‖B z‖ = ‖z‖): the decay factor of C is 1 + c₁δ − c₁ − c_μ Σ_j w_j
+        // over all λ weights; the positive ones sum to 1, the negative ones add the rest.
+        let negative_total: f32 = if self.config.active {
+            k.negative
+                .iter()
+                .skip(k.mu)
+                .take(self.elite.len().saturating_sub(k.mu))
+                .sum()
+        } else {
+            0.0
+        };
+        self.covariance *= 1.0 - k.c_1 - k.c_mu + k.c_1 * delta - k.c_mu * negative_total;
+        self.covariance.ger(k.c_1, &p_c, &p_c, 1.0);
         for (s, w) in self.elite.iter().zip(k.weights.iter()).take(k.mu) {
             let y = self.step_of(&s.z);
-            c.ger(k.c_mu * *w, &y, &y, 1.0);
+            self.covariance.ger(k.c_mu * *w, &y, &y, 1.0);
         }
         if self.config.active {
-            // Ranks μ+1..λ with w_i° = w_i n/‖C^{−1/2} y_i‖², where ‖C^{−1/2} y‖ = ‖B z‖ = ‖z‖.
-            // The decay factor of C is 1 + c₁δ − c₁ − c_μ Σ_j w_j over all λ weights: the
-            // positive ones sum to 1 (in the factor above), the negative ones are added here.
-            let mut negative_total = 0.0;
             for (s, w) in self.elite.iter().zip(k.negative.iter()).skip(k.mu) {
                 let zz = s.z.norm_squared();
                 if zz > 0.0 {
                     let y = self.step_of(&s.z);
-                    c.ger(k.c_mu * *w * N as f32 / zz, &y, &y, 1.0);
+                    self.covariance
+                        .ger(k.c_mu * *w * N as f32 / zz, &y, &y, 1.0);
                 }
-                negative_total += *w;
             }
-            c -= self.covariance * (k.c_mu * negative_total);
         }
-        // Rounding makes C slightly asymmetric; the decomposition reads the lower triangle.
-        let c = (c + c.transpose()) * 0.5;
+        // Rounding makes C slightly asymmetric: average each pair of mirrored entries.
+        for j in 0..N {
+            for i in 0..j {
+                let (Some(&upper), Some(&lower)) =
+                    (self.covariance.get((i, j)), self.covariance.get((j, i)))
+                else {
+                    continue;
+                };
+                let mean = (upper + lower) * 0.5;
+                if let Some(x) = self.covariance.get_mut((i, j)) {
+                    *x = mean;
+                }
+                if let Some(x) = self.covariance.get_mut((j, i)) {
+                    *x = mean;
+                }
+            }
+        }
         let sigma = (self.sigma * libm::expf((k.c_sigma / k.d_sigma) * (norm / k.chi_n - 1.0)))
             .min(self.config.max_sigma);
 
@@ -572,13 +622,12 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
         if finite(&mean)
             && finite(&p_sigma)
             && finite(&p_c)
-            && c.iter().all(|x| x.is_finite())
+            && self.covariance.iter().all(|x| x.is_finite())
             && sigma.is_finite()
         {
             self.mean = mean;
             self.p_sigma = p_sigma;
             self.p_c = p_c;
-            self.covariance = c;
             self.sigma = sigma;
             self.path_generations = path_generations;
             if self.generations.is_multiple_of(self.config.eigen_interval) && !self.decompose() {
@@ -597,7 +646,8 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
     /// B, D ← eig(C) with the floor of the module docs; `false` (nothing changed) when C's
     /// largest eigenvalue is not positive and finite or the decomposition fails.
     fn decompose(&mut self) -> bool {
-        let Some((vectors, values)) = eigen::symmetric_eigen(&self.covariance, &self.basis) else {
+        // B is rotated in place: on failure the caller resets it with `recover`.
+        let Some(values) = eigen::symmetric_eigen(&self.covariance, &mut self.basis) else {
             return false;
         };
         let largest = values.max();
@@ -605,7 +655,6 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
             return false;
         }
         let floor = (largest * EIGEN_FLOOR).max(f32::MIN_POSITIVE);
-        self.basis = vectors;
         self.scales = values.map(|e| libm::sqrtf(e.max(floor)));
         true
     }
@@ -618,8 +667,9 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
         if !(self.sigma.is_finite() && self.sigma > 0.0) {
             self.sigma = self.config.initial_sigma;
         }
-        self.covariance = SMatrix::identity();
-        self.basis = SMatrix::identity();
+        // In place: `= SMatrix::identity()` builds each matrix on the stack first.
+        self.covariance.fill_with_identity();
+        self.basis.fill_with_identity();
         self.scales = Vector::repeat(1.0);
         self.p_sigma = Vector::zeros();
         self.p_c = Vector::zeros();
@@ -677,7 +727,8 @@ mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
     use crate::testing::{
-        any_bounds, check_rejected_calls_change_nothing, check_seeded, ellipsoid, rng, rotation,
+        any_bounds, check_rejected_calls_change_nothing, check_seeded, ellipsoid,
+        evaluations_to_target, rng, rotation,
     };
     use proptest::prelude::*;
 
@@ -687,25 +738,6 @@ mod tests {
             max_evaluations,
             ..CmaesConfig::DEFAULT
         }
-    }
-
-    /// Runs `opt` on `f` until it stops; returns the evaluations at which the best cost
-    /// first fell below `target`, if it did.
-    fn run<O: Optimizer<10>>(
-        opt: &mut O,
-        f: impl Fn(&Vector<10>) -> f32,
-        seed: u64,
-        target: f32,
-    ) -> Option<u32> {
-        let mut r = rng(seed);
-        let mut hit = None;
-        while let Ok(t) = opt.ask(&mut r) {
-            opt.tell(f(&t)).unwrap();
-            if hit.is_none() && opt.best().is_some_and(|b| b.cost < target) {
-                hit = Some(opt.evaluations());
-            }
-        }
-        hit
     }
 
     /// Checks the strategy parameters (with the active weights) against table 1 and
@@ -912,7 +944,7 @@ mod tests {
         for seed in 0..6 {
             let mut cma =
                 Cmaes::<10, 10>::try_new(bounds, Vector::zeros(), config(0.3, 2500)).unwrap();
-            let hit = run(&mut cma, sphere, seed, 1e-6);
+            let hit = evaluations_to_target(&mut cma, sphere, seed, 1e-6);
             assert!(hit.is_some_and(|e| e <= 1200), "seed {seed}: {hit:?}");
             assert_eq!(cma.status(), Status::Converged, "seed {seed}");
             assert!(cma.axis_ratio() < 3.0, "seed {seed}: {}", cma.axis_ratio());
@@ -944,7 +976,7 @@ mod tests {
                     ..config(0.03, 10_000)
                 };
                 let mut cma = Cmaes::<10, 10>::try_new(bounds, Vector::zeros(), config).unwrap();
-                let found = run(&mut cma, discus, seed, 1e-6);
+                let found = evaluations_to_target(&mut cma, discus, seed, 1e-6);
                 *hit = found.unwrap_or_else(|| panic!("seed {seed}, active {active}: not found"));
                 assert_eq!(cma.recoveries(), 0);
             }
@@ -974,7 +1006,7 @@ mod tests {
         for seed in 0..6 {
             let mut cma =
                 Cmaes::<10, 10>::try_new(bounds, Vector::zeros(), config(0.03, 7000)).unwrap();
-            let hit = run(&mut cma, ellipsoid(1e6), seed, 1e-6);
+            let hit = evaluations_to_target(&mut cma, ellipsoid(1e6), seed, 1e-6);
             assert!(hit.is_some(), "seed {seed}: best {:?}", cma.best());
             assert!(
                 cma.axis_ratio() > 300.0,
@@ -992,7 +1024,7 @@ mod tests {
             };
             let mut cem =
                 DiagonalCem::<10, 10, 5>::try_new(bounds, Vector::zeros(), cem_config).unwrap();
-            run(&mut cem, ellipsoid(1e6), seed, 1e-6);
+            evaluations_to_target(&mut cem, ellipsoid(1e6), seed, 1e-6);
             let best = cem.best().unwrap().cost;
             assert!(best > 1.0, "seed {seed}: diagonal CEM {best}");
         }

@@ -87,12 +87,9 @@ default_is_const!(CrsConfig);
 pub struct ControlledRandomSearch<const N: usize, const M: usize> {
     bounds: Bounds<N>,
     config: CrsConfig,
-    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
-    points: [Vector<N>; M],
-    #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
-    costs: [f32; M],
-    /// Points of S evaluated so far (Step 0 ends at M).
-    filled: usize,
+    /// The set S (Step 0 fills it up to M points); the costs alongside.
+    points: heapless::Vec<Vector<N>, M>,
+    costs: heapless::Vec<f32, M>,
     /// (J_max⁰ − J_min⁰)/2, halved so that it is finite for any finite costs.
     initial_spread: f32,
     /// (index of the worst point, J_max, J_min) of the full set, kept up to date by `tell`
@@ -113,9 +110,8 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         Ok(Self {
             bounds,
             config,
-            points: [Vector::zeros(); M],
-            costs: [0.0; M],
-            filled: 0,
+            points: heapless::Vec::new(),
+            costs: heapless::Vec::new(),
             initial_spread: 0.0,
             extremes: (0, 0.0, 0.0),
             order: core::array::from_fn(|i| i as u16),
@@ -131,19 +127,17 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
     /// The current set S with its costs (only the first [`Self::len`] entries are filled
     /// during Step 0).
     pub fn set(&self) -> (&[Vector<N>], &[f32]) {
-        // filled ≤ M: the `min` changes nothing and spares a bounds check (panic path).
-        let filled = self.filled.min(M);
-        (&self.points[..filled], &self.costs[..filled])
+        (&self.points, &self.costs)
     }
 
     /// Points in S so far.
     pub fn len(&self) -> usize {
-        self.filled
+        self.points.len()
     }
 
     /// Whether S is still empty.
     pub fn is_empty(&self) -> bool {
-        self.filled == 0
+        self.points.is_empty()
     }
 
     /// Index of the worst point of the (full) set and the worst and best costs,
@@ -237,7 +231,7 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
 
     /// Step 1's stopping test on the full set.
     fn check_stop(&mut self) {
-        if self.filled < M {
+        if !self.points.is_full() {
             return;
         }
         let (_, j_max, j_min) = self.extremes;
@@ -252,7 +246,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
-        if self.filled < M {
+        if !self.points.is_full() {
             return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
         }
         let (_, j_max, j_min) = self.extremes;
@@ -275,14 +269,12 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
         let theta = self.ledger.accept(cost)?;
-        if let (Some(p), Some(c)) = (
-            self.points.get_mut(self.filled),
-            self.costs.get_mut(self.filled),
-        ) {
-            // Step 0: filling the set (filled < M).
-            (*p, *c) = (theta, cost);
-            self.filled += 1;
-            if self.filled == M {
+        if !self.points.is_full() {
+            // Step 0: filling the set. Both pushes succeed (points and costs grow together,
+            // and neither is full); their results are ignored rather than unwrapped.
+            let _ = self.points.push(theta);
+            let _ = self.costs.push(cost);
+            if self.points.is_full() {
                 self.extremes = self.scan_extremes();
                 let (_, j_max, j_min) = self.extremes;
                 self.initial_spread = 0.5 * j_max - 0.5 * j_min;

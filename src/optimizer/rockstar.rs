@@ -527,7 +527,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             factor: SMatrix::identity(),
             inverse: SMatrix::identity(),
             path: Vector::zeros(),
-            samples: [Vector::zeros(); M],
+            samples: [const { crate::vector::zero::<N>() }; M],
             costs: [0.0; M],
             len: 0,
             head: 0,
@@ -1115,7 +1115,7 @@ mod tests {
     use crate::optimizer::{Best, Cmaes, CmaesConfig};
     use crate::testing::{
         any_wide_bounds, check_call_order, check_rejected_calls_change_nothing, check_seeded,
-        ellipsoid, rng, rotation,
+        ellipsoid, evaluations_to_target, rng, rotation,
     };
     use proptest::prelude::*;
     use rand_xoshiro::Xoshiro128PlusPlus;
@@ -1131,25 +1131,6 @@ mod tests {
 
     fn sphere<const D: usize>(t: &Vector<D>) -> f32 {
         (t - Vector::repeat(0.3)).norm_squared()
-    }
-
-    /// Runs `opt` on `f` until it stops; returns the evaluations at which the best cost
-    /// first fell below `target`, if it did.
-    fn run<const D: usize, O: Optimizer<D>>(
-        opt: &mut O,
-        f: impl Fn(&Vector<D>) -> f32,
-        seed: u64,
-        target: f32,
-    ) -> Option<u32> {
-        let mut r = rng(seed);
-        let mut hit = None;
-        while let Ok(t) = opt.ask(&mut r) {
-            opt.tell(f(&t)).unwrap();
-            if hit.is_none() && opt.best().is_some_and(|b| b.cost < target) {
-                hit = Some(opt.evaluations());
-            }
-        }
-        hit
     }
 
     /// The determinant by Gaussian elimination with partial pivoting (f64).
@@ -1258,7 +1239,7 @@ mod tests {
         for seed in 0..6 {
             let mut rock =
                 Rockstar::<10, 50>::try_new(bounds, Vector::zeros(), config(1500)).unwrap();
-            let hit = run(&mut rock, sphere, seed, 1e-6);
+            let hit = evaluations_to_target(&mut rock, sphere, seed, 1e-6);
             assert!(hit.is_some_and(|e| e <= 800), "seed {seed}: {hit:?}");
             assert_eq!(rock.status(), Status::Converged, "seed {seed}");
             assert!(rock.sigma() <= 1e-6);
@@ -1284,7 +1265,7 @@ mod tests {
         for seed in 0..4 {
             let mut rock =
                 Rockstar::<10, 50>::try_new(bounds, Vector::zeros(), config(2500)).unwrap();
-            let hit = run(&mut rock, &f, seed, 1e-6);
+            let hit = evaluations_to_target(&mut rock, &f, seed, 1e-6);
             assert!(hit.is_some(), "seed {seed}: best {:?}", rock.best());
             assert!(f(&rock.theta_star()) < 1e-6, "seed {seed}");
             let seen = r * rock.shape().map(f64::from) * r.transpose();
@@ -1305,7 +1286,11 @@ mod tests {
                 ..config(2500)
             };
             let mut rock = Rockstar::<10, 50>::try_new(bounds, Vector::zeros(), frozen).unwrap();
-            assert_eq!(run(&mut rock, &f, seed, 1e-6), None, "seed {seed}");
+            assert_eq!(
+                evaluations_to_target(&mut rock, &f, seed, 1e-6),
+                None,
+                "seed {seed}"
+            );
         }
     }
 
@@ -1369,7 +1354,10 @@ mod tests {
         };
         for seed in 0..4 {
             let mut rock = Rockstar::<10, 50>::try_new(bounds, Vector::zeros(), cfg).unwrap();
-            assert!(run(&mut rock, sphere, seed, 1e-6).is_some(), "seed {seed}");
+            assert!(
+                evaluations_to_target(&mut rock, sphere, seed, 1e-6).is_some(),
+                "seed {seed}"
+            );
         }
     }
 

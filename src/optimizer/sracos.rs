@@ -297,6 +297,32 @@ impl RacosConfig {
 
 default_is_const!(RacosConfig);
 
+/// The accessors SRACOS and RACOS share: the configuration, the uncertain coordinates and
+/// the classifier's two sets (documented per algorithm).
+macro_rules! model_accessors {
+    ($config:ty, $positives:literal, $negatives:literal) => {
+        /// The configuration in use.
+        pub fn config(&self) -> &$config {
+            &self.config
+        }
+
+        /// The number of coordinates each classifier candidate redraws.
+        pub fn uncertain_bits(&self) -> usize {
+            self.uncertain_bits
+        }
+
+        #[doc = $positives]
+        pub fn positives(&self) -> &[Best<N>] {
+            self.archive.positives()
+        }
+
+        #[doc = $negatives]
+        pub fn negatives(&self) -> &[Best<N>] {
+            self.archive.negatives()
+        }
+    };
+}
+
 /// The positive and negative sets, filled by the r initial samples and then of fixed size.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -574,27 +600,13 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
         })
     }
 
-    /// The configuration in use.
-    pub fn config(&self) -> &SracosConfig {
-        &self.config
-    }
-
-    /// The number of coordinates each classifier candidate redraws.
-    pub fn uncertain_bits(&self) -> usize {
-        self.uncertain_bits
-    }
-
-    /// The positive set, best first (fewer than `K` during the first samples). Under value
-    /// suppression the costs of re-evaluated entries are the suppressed ones, so the first
-    /// entry is the parameter vector to trust on a noisy plant.
-    pub fn positives(&self) -> &[Best<N>] {
-        self.archive.positives()
-    }
-
-    /// The negative set, unordered (empty until `K` samples are stored).
-    pub fn negatives(&self) -> &[Best<N>] {
-        self.archive.negatives()
-    }
+    model_accessors!(
+        SracosConfig,
+        "The positive set, best first (fewer than `K` during the first samples). Under value \
+         suppression the costs of re-evaluated entries are the suppressed ones, so the first \
+         entry is the parameter vector to trust on a noisy plant.",
+        "The negative set, unordered (empty until `K` samples are stored)."
+    );
 
     /// Whether value suppression is re-evaluating the positives.
     pub fn is_resampling(&self) -> bool {
@@ -758,25 +770,11 @@ impl<const N: usize, const K: usize, const M: usize> Racos<N, K, M> {
         })
     }
 
-    /// The configuration in use.
-    pub fn config(&self) -> &RacosConfig {
-        &self.config
-    }
-
-    /// The number of coordinates each classifier candidate redraws.
-    pub fn uncertain_bits(&self) -> usize {
-        self.uncertain_bits
-    }
-
-    /// The positive set of the current batch's model, best first.
-    pub fn positives(&self) -> &[Best<N>] {
-        self.archive.positives()
-    }
-
-    /// The negative set of the current batch's model, unordered.
-    pub fn negatives(&self) -> &[Best<N>] {
-        self.archive.negatives()
-    }
+    model_accessors!(
+        RacosConfig,
+        "The positive set of the current batch's model, best first.",
+        "The negative set of the current batch's model, unordered."
+    );
 }
 
 impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K, M> {

@@ -145,7 +145,13 @@ macro_rules! measure_optimizer {
     ($optimizer:expr, $n:expr, $measured:expr, $ask:ident, $tell:ident) => {{
         use ctrl_adapt::{Optimizer as _, Status};
         use rand_core::SeedableRng as _;
-        let mut optimizer = $optimizer?;
+        // Borrowed where it was built, inside the `Result`: moving it out would put a second
+        // copy of its state on the stack.
+        let mut built = $optimizer;
+        let optimizer = match &mut built {
+            Ok(optimizer) => optimizer,
+            Err(e) => return Err(*e),
+        };
         let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
         let ellipsoid = $crate::functions::Ellipsoid::<{ $n }>::new();
         for _ in 0..$measured {

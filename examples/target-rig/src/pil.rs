@@ -7,8 +7,10 @@
 //! previous answer, makes this tick's action the controller's fallback (the nominal PD on
 //! the last valid state, flagged `FALLBACK` in the action frame).
 
+use auv_survey::{self as auv, AuvLearner};
 use cortex_m::interrupt::InterruptNumber;
 use cortex_m::peripheral::{NVIC, SCB};
+use ctrl_adapt::{Error, Optimizer};
 use pil_link::{FrameReader, Kind, Learner, LinkError, Session, read_frame, write_frame};
 
 use crate::clock::Millis;
@@ -96,6 +98,35 @@ impl embedded_io::Write for SleepingPort {
     fn flush(&mut self) -> Result<(), Overrun> {
         self.uart.flush()
     }
+}
+
+/// The AUV PIL firmware's `main` with the optimizer `optimizer` (an [`auv_survey`] builder,
+/// called with no episode budget: the host decides how many episodes learn, each Start
+/// frame says): builds the learner, logs the session's `size_of` as `name`, and serves it.
+///
+/// The learner is built by a function that is never inlined, so the builders' by-value moves
+/// (optimizer into adapter into learner) leave their temporaries in a frame that is gone
+/// before the session runs; it stays where it landed, inside the `Result`, and is lent to
+/// the session (moving it out would put a second copy of its state on the stack).
+pub fn run_auv<O: Optimizer<{ auv::P }>>(name: &str, optimizer: fn(u32) -> Result<O, Error>) -> ! {
+    let mut learner =
+        apart(|| optimizer(u32::MAX).and_then(|o| AuvLearner::try_new(o, u32::MAX, auv::SEED)));
+    let Ok(learner) = &mut learner else {
+        defmt::error!("invalid AUV configuration");
+        exit_failure()
+    };
+    defmt::info!(
+        "footprint: size_of Session<AuvLearner<{=str}>> = {=usize}",
+        name,
+        core::mem::size_of::<Session<AuvLearner<O>>>()
+    );
+    serve(learner)
+}
+
+/// `build()`, in a stack frame of its own.
+#[inline(never)]
+fn apart<T>(build: impl FnOnce() -> T) -> T {
+    build()
 }
 
 /// Serves the PIL protocol with `controller` until the host says Shutdown, then logs the link

@@ -6,23 +6,10 @@
 #![no_std]
 #![no_main]
 
-use auv_survey::{self as auv, AuvLearner};
-use ctrl_adapt::CoordinateSearch;
-use ctrl_adapt_firmware::{exit_failure, pil};
-use pil_link::Session;
+use auv_survey as auv;
+use ctrl_adapt_firmware::pil;
 
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    // The host decides how many episodes learn (each Start frame says), so no budget here.
-    let learner =
-        auv::coordinate_search(u32::MAX).and_then(|o| AuvLearner::try_new(o, u32::MAX, auv::SEED));
-    let Ok(learner) = learner else {
-        defmt::error!("invalid AUV configuration");
-        exit_failure()
-    };
-    defmt::info!(
-        "footprint: size_of Session<AuvLearner<CoordinateSearch<18>>> = {=usize}",
-        core::mem::size_of::<Session<AuvLearner<CoordinateSearch<18>>>>()
-    );
-    pil::serve(learner)
+    pil::run_auv("CoordinateSearch<18>", auv::coordinate_search)
 }
