@@ -172,3 +172,59 @@ pub(crate) fn evaluations_to_target<const N: usize, O: Optimizer<N>>(
     }
     hit
 }
+
+/// Drives `s` through `costs` (any f32) and checks after every step: the candidate is inside
+/// `bounds`; a finite cost is accepted, a non-finite one refused with the state unchanged;
+/// the best cost never rises; and `invariant(s)`, the optimizer's own. Stops early when the
+/// search stops.
+pub(crate) fn check_any_costs<const N: usize, O>(
+    s: &mut O,
+    bounds: &Bounds<N>,
+    costs: &[f32],
+    mut invariant: impl FnMut(&O) -> Result<(), TestCaseError>,
+) -> Result<(), TestCaseError>
+where
+    O: Optimizer<N> + Clone + PartialEq + core::fmt::Debug,
+{
+    let mut r = rng(1);
+    let mut best = f32::INFINITY;
+    for &cost in costs {
+        let Ok(theta) = s.ask(&mut r) else { break };
+        prop_assert!(bounds.contains(&theta), "{theta:?} outside {bounds:?}");
+        let before = s.clone();
+        let told = s.tell(cost);
+        if cost.is_finite() {
+            prop_assert!(told.is_ok());
+        } else {
+            prop_assert_eq!(told, Err(Error::NonFinite("cost")));
+            prop_assert_eq!(&*s, &before);
+        }
+        invariant(s)?;
+        let now = s.best().map_or(f32::INFINITY, |b| b.cost);
+        prop_assert!(now <= best);
+        best = now;
+    }
+    Ok(())
+}
+
+/// After `warmup` (finite costs, told while the search runs), a `tell` of `cost` with
+/// (`ask_first`) or without a pending candidate is accepted exactly when there is one and
+/// the cost is finite, and never panics.
+pub(crate) fn check_tell_after<const N: usize, O: Optimizer<N>>(
+    s: &mut O,
+    warmup: &[f32],
+    ask_first: bool,
+    cost: f32,
+) -> Result<(), TestCaseError> {
+    let mut r = rng(0);
+    for &c in warmup {
+        let Ok(_) = s.ask(&mut r) else { break };
+        s.tell(c).unwrap();
+    }
+    if ask_first && s.ask(&mut r).is_ok() {
+        prop_assert_eq!(s.tell(cost).is_ok(), cost.is_finite());
+    } else {
+        prop_assert_eq!(s.tell(cost), Err(Error::NoPendingAsk));
+    }
+    Ok(())
+}

@@ -488,7 +488,7 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{any_bounds, check_call_order, check_seeded, rng};
+    use crate::testing::{any_bounds, check_any_costs, check_call_order, check_seeded, rng};
     use proptest::prelude::*;
 
     fn weights_of(weighting: Weighting, sorted: &[f32], worst: f32) -> std::vec::Vec<f32> {
@@ -939,19 +939,7 @@ mod tests {
             };
             let mut s = DiagonalCem::<4, 6>::try_new(bounds, start, cfg).unwrap();
             let initial_variances = *s.variances();
-            let mut r = rng(1);
-            let mut best = f32::INFINITY;
-            for cost in costs {
-                let Ok(theta) = s.ask(&mut r) else { break };
-                prop_assert!(bounds.contains(&theta), "{theta:?} outside {bounds:?}");
-                let before = s.clone();
-                let told = s.tell(cost);
-                if cost.is_finite() {
-                    prop_assert!(told.is_ok());
-                } else {
-                    prop_assert_eq!(told, Err(Error::NonFinite("cost")));
-                    prop_assert_eq!(&s, &before);
-                }
+            check_any_costs(&mut s, &bounds, &costs, |s| {
                 if adapt {
                     prop_assert!(s.variances().iter().all(|v| *v >= cfg.min_variance
                         && *v <= cfg.max_variance), "{:?}", s.variances());
@@ -959,10 +947,8 @@ mod tests {
                     prop_assert_eq!(s.variances(), &initial_variances);
                 }
                 prop_assert!(bounds.contains(s.mean()));
-                let now = s.best().map_or(f32::INFINITY, |b| b.cost);
-                prop_assert!(now <= best);
-                best = now;
-            }
+                Ok(())
+            })?;
         }
 
         /// Checks: `tell` with any f32, with or without a pending candidate, and at any point

@@ -727,8 +727,8 @@ mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
     use crate::testing::{
-        any_bounds, check_rejected_calls_change_nothing, check_seeded, ellipsoid,
-        evaluations_to_target, rng, rotation,
+        any_bounds, check_any_costs, check_rejected_calls_change_nothing, check_seeded,
+        check_tell_after, ellipsoid, evaluations_to_target, rng, rotation,
     };
     use proptest::prelude::*;
 
@@ -1237,24 +1237,10 @@ mod tests {
                 ..CmaesConfig::DEFAULT
             };
             let mut s = Cmaes::<4, 5>::try_new(bounds, start, cfg).unwrap();
-            let mut r = rng(1);
-            let mut best = f32::INFINITY;
-            for cost in costs {
-                let Ok(theta) = s.ask(&mut r) else { break };
-                prop_assert!(bounds.contains(&theta), "{theta:?} outside {bounds:?}");
-                let before = s.clone();
-                let told = s.tell(cost);
-                if cost.is_finite() {
-                    prop_assert!(told.is_ok());
-                } else {
-                    prop_assert_eq!(told, Err(Error::NonFinite("cost")));
-                    prop_assert_eq!(&s, &before);
-                }
+            check_any_costs(&mut s, &bounds, &costs, |s| {
                 prop_assert!(s.sigma() > 0.0 && s.sigma() <= 5.0 || s.status() == Status::Converged);
-                let now = s.best().map_or(f32::INFINITY, |b| b.cost);
-                prop_assert!(now <= best);
-                best = now;
-            }
+                Ok(())
+            })?;
         }
 
         /// Checks: `tell` with any f32, with or without a pending candidate, at any point of
@@ -1276,16 +1262,7 @@ mod tests {
                 ..CmaesConfig::DEFAULT
             };
             let mut s = Cmaes::<3, 4>::try_new(b, Vector::zeros(), cfg).unwrap();
-            let mut r = rng(0);
-            for c in warmup {
-                let Ok(_) = s.ask(&mut r) else { break };
-                s.tell(c).unwrap();
-            }
-            if ask_first && s.ask(&mut r).is_ok() {
-                prop_assert_eq!(s.tell(cost).is_ok(), cost.is_finite());
-            } else {
-                prop_assert_eq!(s.tell(cost), Err(Error::NoPendingAsk));
-            }
+            check_tell_after(&mut s, &warmup, ask_first, cost)?;
         }
     }
 }

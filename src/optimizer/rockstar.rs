@@ -1114,8 +1114,8 @@ mod tests {
     use super::*;
     use crate::optimizer::{Best, Cmaes, CmaesConfig};
     use crate::testing::{
-        any_wide_bounds, check_call_order, check_rejected_calls_change_nothing, check_seeded,
-        ellipsoid, evaluations_to_target, rng, rotation,
+        any_wide_bounds, check_any_costs, check_call_order, check_rejected_calls_change_nothing,
+        check_seeded, check_tell_after, ellipsoid, evaluations_to_target, rng, rotation,
     };
     use proptest::prelude::*;
     use rand_xoshiro::Xoshiro128PlusPlus;
@@ -1844,29 +1844,15 @@ mod tests {
                 ..RockstarConfig::DEFAULT
             };
             let mut s = Rockstar::<4, 6>::try_new(bounds, start, cfg).unwrap();
-            let mut r = rng(1);
-            let mut best = f32::INFINITY;
-            for cost in costs {
-                let Ok(theta) = s.ask(&mut r) else { break };
-                prop_assert!(theta.iter().all(|v| v.is_finite()));
-                prop_assert!(bounds.contains(&theta), "{theta:?} outside {bounds:?}");
-                let before = s.clone();
-                let told = s.tell(cost);
-                if cost.is_finite() {
-                    prop_assert!(told.is_ok());
-                } else {
-                    prop_assert_eq!(told, Err(Error::NonFinite("cost")));
-                    prop_assert_eq!(&s, &before);
-                }
+            // Inside the box implies finite: `Bounds` are finite.
+            check_any_costs(&mut s, &bounds, &costs, |s| {
                 let star = s.theta_star();
                 prop_assert!(star.iter().all(|v| v.is_finite()) && bounds.contains(&star));
                 prop_assert!(s.sigma() > 0.0 && s.sigma() <= 1.0);
-                let (det, err) = factor_health(&s);
+                let (det, err) = factor_health(s);
                 prop_assert!((det - 1.0).abs() < 1e-3 && err < 1e-3, "{} {}", det, err);
-                let now = s.best().map_or(f32::INFINITY, |b| b.cost);
-                prop_assert!(now <= best);
-                best = now;
-            }
+                Ok(())
+            })?;
         }
 
         /// Checks: `tell` with any f32, with or without a pending candidate, after any
@@ -1888,16 +1874,7 @@ mod tests {
         ) {
             let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
             let mut s = Rockstar::<3, 5>::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT).unwrap();
-            let mut r = rng(0);
-            for c in warmup {
-                let Ok(_) = s.ask(&mut r) else { break };
-                s.tell(c).unwrap();
-            }
-            if ask_first && s.ask(&mut r).is_ok() {
-                prop_assert_eq!(s.tell(cost).is_ok(), cost.is_finite());
-            } else {
-                prop_assert_eq!(s.tell(cost), Err(Error::NoPendingAsk));
-            }
+            check_tell_after(&mut s, &warmup, ask_first, cost)?;
         }
     }
 }
