@@ -333,6 +333,12 @@ pub struct AuvLearner<O> {
 impl<O: Optimizer<P>> AuvLearner<O> {
     /// The learner over `optimizer`, its RNG seeded with `seed`. The host decides how many
     /// episodes learn (see [`Mode`]); the adapter's own budget is `learning_episodes`.
+    ///
+    /// Never inlined, so that the adapter it assembles around `optimizer` is built in this
+    /// function's frame and returned into the caller's place, instead of adding one more
+    /// temporary copy to the caller's frame (firmware builds its learner once, and the stack
+    /// it peaks at then is the figure that matters: docs/firmware.md).
+    #[inline(never)]
     pub fn try_new(optimizer: O, learning_episodes: u32, seed: u64) -> Result<Self, Error> {
         Ok(Self {
             adapter: adapter(optimizer, learning_episodes)?,
