@@ -130,6 +130,19 @@ pub(crate) fn check_stopping(tolerance: Option<f32>, max_evaluations: u32) -> Re
     Ok(())
 }
 
+/// The step-size checks of the strategies that adapt one (CMA-ES, ROCK*): the largest σ
+/// finite and > 0, the initial σ finite, > 0 and at most the largest.
+pub(crate) fn check_sigmas(initial_sigma: f32, max_sigma: f32) -> Result<(), Error> {
+    let positive = |v: f32| v.is_finite() && v > 0.0;
+    if !positive(max_sigma) {
+        return Err(Error::InvalidParameter("max_sigma"));
+    }
+    if !(positive(initial_sigma) && initial_sigma <= max_sigma) {
+        return Err(Error::InvalidParameter("initial_sigma"));
+    }
+    Ok(())
+}
+
 /// `impl Default` as the configuration's `DEFAULT` constant, for each type named.
 macro_rules! default_is_const {
     ($($config:ty),+) => {

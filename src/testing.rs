@@ -228,3 +228,24 @@ pub(crate) fn check_tell_after<const N: usize, O: Optimizer<N>>(
     }
     Ok(())
 }
+
+/// Asks and tells `f` of each candidate, `evaluations` times (`None`: until the search
+/// stops), checking that every candidate is inside `bounds`.
+pub(crate) fn tell_inside<const N: usize, O: Optimizer<N>>(
+    opt: &mut O,
+    bounds: &Bounds<N>,
+    r: &mut Xoshiro128PlusPlus,
+    f: impl Fn(&Vector<N>) -> f32,
+    evaluations: Option<u32>,
+) {
+    let mut told = 0;
+    while evaluations.is_none_or(|n| told < n) {
+        let Ok(t) = opt.ask(r) else {
+            assert!(evaluations.is_none(), "stopped after {told} evaluations");
+            return;
+        };
+        assert!(bounds.contains(&t), "{t:?} outside {bounds:?}");
+        opt.tell(f(&t)).unwrap();
+        told += 1;
+    }
+}

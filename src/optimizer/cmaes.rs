@@ -118,7 +118,7 @@ use nalgebra::{
 use rand_core::RngCore;
 
 use super::{Ledger, Optimizer, Status, keep_ranked};
-use super::{check_stopping, default_is_const, ledger_accessors};
+use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
 use crate::vector::unrolled;
@@ -244,14 +244,8 @@ impl CmaesConfig {
 
     /// `Ok` when every parameter is in its range, else the first offending field.
     pub fn validate(&self) -> Result<(), Error> {
-        let positive = |v: f32| v.is_finite() && v > 0.0;
         let non_negative = |v: f32| v.is_finite() && v >= 0.0;
-        if !positive(self.max_sigma) {
-            return Err(Error::InvalidParameter("max_sigma"));
-        }
-        if !(positive(self.initial_sigma) && self.initial_sigma <= self.max_sigma) {
-            return Err(Error::InvalidParameter("initial_sigma"));
-        }
+        check_sigmas(self.initial_sigma, self.max_sigma)?;
         if !non_negative(self.penalty) {
             return Err(Error::InvalidParameter("penalty"));
         }
@@ -728,7 +722,7 @@ mod tests {
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
     use crate::testing::{
         any_bounds, check_any_costs, check_rejected_calls_change_nothing, check_seeded,
-        check_tell_after, ellipsoid, evaluations_to_target, rng, rotation,
+        check_tell_after, ellipsoid, evaluations_to_target, rng, rotation, tell_inside,
     };
     use proptest::prelude::*;
 
@@ -1094,24 +1088,14 @@ mod tests {
         let mut cma = Cmaes::<4, 8>::try_new(bounds, Vector::zeros(), config(0.2, 3000)).unwrap();
         let mut r = rng(9);
         let sphere = |t: &Vector<4>| (t - Vector::repeat(-0.4)).norm_squared();
-        for _ in 0..16 {
-            let t = cma.ask(&mut r).unwrap();
-            cma.tell(sphere(&t)).unwrap();
-        }
+        tell_inside(&mut cma, &bounds, &mut r, sphere, Some(16));
         cma.covariance[(1, 2)] = f32::INFINITY;
         cma.covariance[(0, 0)] = f32::NAN;
-        for _ in 0..8 {
-            let t = cma.ask(&mut r).unwrap();
-            assert!(bounds.contains(&t));
-            cma.tell(sphere(&t)).unwrap();
-        }
+        tell_inside(&mut cma, &bounds, &mut r, sphere, Some(8));
         assert_eq!(cma.recoveries(), 1);
         assert_eq!(cma.covariance(), &SMatrix::<f32, 4, 4>::identity());
         assert_eq!((cma.p_sigma, cma.p_c), (Vector::zeros(), Vector::zeros()));
-        while let Ok(t) = cma.ask(&mut r) {
-            assert!(bounds.contains(&t));
-            cma.tell(sphere(&t)).unwrap();
-        }
+        tell_inside(&mut cma, &bounds, &mut r, sphere, None);
         assert_eq!(cma.recoveries(), 1);
         assert!(cma.best().unwrap().cost < 1e-8);
     }

@@ -174,7 +174,7 @@ use nalgebra::SMatrix;
 use rand_core::RngCore;
 
 use super::{Ledger, Optimizer, Status};
-use super::{check_stopping, default_is_const, ledger_accessors};
+use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
 use crate::{Bounds, Error, Vector};
@@ -290,12 +290,7 @@ impl RockstarConfig {
     pub fn validate(&self) -> Result<(), Error> {
         let positive = |v: f32| v.is_finite() && v > 0.0;
         let non_negative = |v: f32| v.is_finite() && v >= 0.0;
-        if !positive(self.max_sigma) {
-            return Err(Error::InvalidParameter("max_sigma"));
-        }
-        if !(positive(self.initial_sigma) && self.initial_sigma <= self.max_sigma) {
-            return Err(Error::InvalidParameter("initial_sigma"));
-        }
+        check_sigmas(self.initial_sigma, self.max_sigma)?;
         // ϑ = −P/(2 ln λ) must be a usable, finite kernel scale.
         if !(self.lambda > 1e-6 && self.lambda < 1.0 - 1e-6) {
             return Err(Error::InvalidParameter("lambda"));
@@ -1116,6 +1111,7 @@ mod tests {
     use crate::testing::{
         any_wide_bounds, check_any_costs, check_call_order, check_rejected_calls_change_nothing,
         check_seeded, check_tell_after, ellipsoid, evaluations_to_target, rng, rotation,
+        tell_inside,
     };
     use proptest::prelude::*;
     use rand_xoshiro::Xoshiro128PlusPlus;
@@ -1646,10 +1642,7 @@ mod tests {
         let bounds = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
         let mut rock = Rockstar::<4, 16>::try_new(bounds, Vector::zeros(), config(2000)).unwrap();
         let mut r = rng(9);
-        for _ in 0..40 {
-            let t = rock.ask(&mut r).unwrap();
-            rock.tell(sphere(&t)).unwrap();
-        }
+        tell_inside(&mut rock, &bounds, &mut r, sphere, Some(40));
         rock.factor[(1, 2)] = f32::NAN;
         let t = rock.ask(&mut r).unwrap();
         assert!(bounds.contains(&t));
@@ -1658,10 +1651,7 @@ mod tests {
         assert_eq!(rock.remembered(), 1);
         assert_eq!(rock.path, Vector::<4>::zeros());
         assert_eq!(rock.shape(), SMatrix::<f32, 4, 4>::identity());
-        while let Ok(t) = rock.ask(&mut r) {
-            assert!(bounds.contains(&t));
-            rock.tell(sphere(&t)).unwrap();
-        }
+        tell_inside(&mut rock, &bounds, &mut r, sphere, None);
         assert_eq!(rock.recoveries(), 1);
         assert!(rock.best().unwrap().cost < 1e-6);
     }
@@ -1675,10 +1665,7 @@ mod tests {
         let bounds = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
         let mut rock = Rockstar::<4, 16>::try_new(bounds, Vector::zeros(), config(2000)).unwrap();
         let mut r = rng(10);
-        for _ in 0..40 {
-            let t = rock.ask(&mut r).unwrap();
-            rock.tell(sphere(&t)).unwrap();
-        }
+        tell_inside(&mut rock, &bounds, &mut r, sphere, Some(40));
         rock.factor.column_mut(0).fill(0.0);
         let positions: std::vec::Vec<Vector<4>> = rock.memory().map(|(t, _)| t).collect();
         while rock.recoveries() == 0 {
