@@ -7,9 +7,10 @@ use nalgebra::{ArrayStorage, SVector};
 /// single precision, `f64` would be emulated in software).
 pub type Vector<const N: usize> = SVector<f32, N>;
 
-/// The zero vector, as a constant: `[ZERO; M]` of it is filled in place, where
-/// `[Vector::zeros(); M]` builds the array on the stack and copies it into the struct that
-/// holds it (one more copy of the largest part of an optimizer's state at construction).
+/// The zero vector, usable in constants (`Vector::zeros` is not a `const fn`): the empty
+/// entries of a constant such as SRACOS's empty archive, which is copied into place rather
+/// than assembled on the stack. (A repeat expression `[const { zero() }; M]` inside a
+/// constructor is still built on the stack and copied, measured on CRS; a constant is not.)
 pub(crate) const fn zero<const N: usize>() -> Vector<N> {
     SVector::from_array_storage(ArrayStorage([[0.0; N]; 1]))
 }
