@@ -9,7 +9,7 @@
 //! cost, which the [`Adapter`](crate::controller::Adapter) turns into its failure penalty
 //! rather than hand a NaN to an optimizer.
 
-use crate::error::Error;
+use crate::error::{Error, require};
 use crate::vector::Vector;
 
 /// Accumulates a cost over an episode.
@@ -62,9 +62,7 @@ pub struct SurveyCost {
 impl SurveyCost {
     /// A survey with distance threshold D = `radius` metres (> 0; the paper uses 1 m).
     pub fn try_new(radius: f32) -> Result<Self, Error> {
-        if !(radius.is_finite() && radius > 0.0) {
-            return Err(Error::InvalidParameter("radius"));
-        }
+        require(radius.is_finite() && radius > 0.0, "radius")?;
         Ok(Self {
             radius,
             min_distance: f32::INFINITY,
@@ -138,9 +136,10 @@ pub struct QuadraticCost<const K: usize> {
 impl<const K: usize> QuadraticCost<K> {
     /// Weights q_i ≥ 0, finite.
     pub fn try_new(weights: Vector<K>) -> Result<Self, Error> {
-        if weights.iter().any(|q| !(q.is_finite() && *q >= 0.0)) {
-            return Err(Error::InvalidParameter("weights"));
-        }
+        require(
+            weights.iter().all(|q| q.is_finite() && *q >= 0.0),
+            "weights",
+        )?;
         Ok(Self {
             weights,
             total: 0.0,
@@ -287,24 +286,15 @@ impl ApexHeightCost {
     /// Validates `config` (finite, non-negative weights; positive heights).
     pub fn try_new(config: ApexConfig) -> Result<Self, Error> {
         let finite_nonneg = |v: f32| v.is_finite() && v >= 0.0;
-        if !(config.set_height.is_finite() && config.set_height > 0.0) {
-            return Err(Error::InvalidParameter("set_height"));
-        }
-        if !finite_nonneg(config.min_apex) {
-            return Err(Error::InvalidParameter("min_apex"));
-        }
-        if !finite_nonneg(config.missing_hop_cost) {
-            return Err(Error::InvalidParameter("missing_hop_cost"));
-        }
-        if !finite_nonneg(config.energy_weight) {
-            return Err(Error::InvalidParameter("energy_weight"));
-        }
-        if !finite_nonneg(config.violation_cost) {
-            return Err(Error::InvalidParameter("violation_cost"));
-        }
-        if !finite_nonneg(config.spread_weight) {
-            return Err(Error::InvalidParameter("spread_weight"));
-        }
+        require(
+            config.set_height.is_finite() && config.set_height > 0.0,
+            "set_height",
+        )?;
+        require(finite_nonneg(config.min_apex), "min_apex")?;
+        require(finite_nonneg(config.missing_hop_cost), "missing_hop_cost")?;
+        require(finite_nonneg(config.energy_weight), "energy_weight")?;
+        require(finite_nonneg(config.violation_cost), "violation_cost")?;
+        require(finite_nonneg(config.spread_weight), "spread_weight")?;
         let mut cost = Self {
             config,
             previous_velocity: 0.0,

@@ -50,6 +50,16 @@ impl fmt::Display for Error {
 
 impl core::error::Error for Error {}
 
+/// `Ok` when `valid`, else [`Error::InvalidParameter`] naming `parameter`: one line per range
+/// check in the configurations' `validate`.
+pub(crate) fn require(valid: bool, parameter: &'static str) -> Result<(), Error> {
+    if valid {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter(parameter))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

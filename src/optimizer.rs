@@ -58,6 +58,7 @@ pub use two_phase::TwoPhase;
 // The shared vocabulary, also reachable from here (where it lived before 0.2.0).
 pub use crate::bounds::Bounds;
 pub use crate::error::Error;
+use crate::error::require;
 pub(crate) use crate::random::random_index;
 pub use crate::random::{normal_pair_f32, unit_f32};
 pub use crate::vector::Vector;
@@ -121,12 +122,11 @@ pub trait Optimizer<const N: usize> {
 /// The checks every optimizer's configuration ends with: a finite stopping tolerance ≥ 0
 /// (`None` for an optimizer that has none) and a budget of at least one evaluation.
 pub(crate) fn check_stopping(tolerance: Option<f32>, max_evaluations: u32) -> Result<(), Error> {
-    if tolerance.is_some_and(|t| !(t.is_finite() && t >= 0.0)) {
-        return Err(Error::InvalidParameter("tolerance"));
-    }
-    if max_evaluations == 0 {
-        return Err(Error::InvalidParameter("max_evaluations"));
-    }
+    require(
+        tolerance.is_none_or(|t| t.is_finite() && t >= 0.0),
+        "tolerance",
+    )?;
+    require(max_evaluations != 0, "max_evaluations")?;
     Ok(())
 }
 
@@ -134,12 +134,11 @@ pub(crate) fn check_stopping(tolerance: Option<f32>, max_evaluations: u32) -> Re
 /// finite and > 0, the initial σ finite, > 0 and at most the largest.
 pub(crate) fn check_sigmas(initial_sigma: f32, max_sigma: f32) -> Result<(), Error> {
     let positive = |v: f32| v.is_finite() && v > 0.0;
-    if !positive(max_sigma) {
-        return Err(Error::InvalidParameter("max_sigma"));
-    }
-    if !(positive(initial_sigma) && initial_sigma <= max_sigma) {
-        return Err(Error::InvalidParameter("initial_sigma"));
-    }
+    require(positive(max_sigma), "max_sigma")?;
+    require(
+        positive(initial_sigma) && initial_sigma <= max_sigma,
+        "initial_sigma",
+    )?;
     Ok(())
 }
 

@@ -28,7 +28,7 @@ use rand_core::RngCore;
 
 use super::Controller;
 use crate::cost::Shaper;
-use crate::error::Error;
+use crate::error::{Error, require};
 use crate::optimizer::Optimizer;
 use crate::vector::Vector;
 
@@ -65,15 +65,9 @@ pub struct AdapterConfig {
 impl AdapterConfig {
     /// `Ok` when every field is in range, else the first offending field.
     pub fn validate(&self) -> Result<(), Error> {
-        if !(self.dt.is_finite() && self.dt > 0.0) {
-            return Err(Error::InvalidParameter("dt"));
-        }
-        if !self.failure_cost.is_finite() {
-            return Err(Error::InvalidParameter("failure_cost"));
-        }
-        if self.learning_episodes == 0 {
-            return Err(Error::InvalidParameter("learning_episodes"));
-        }
+        require(self.dt.is_finite() && self.dt > 0.0, "dt")?;
+        require(self.failure_cost.is_finite(), "failure_cost")?;
+        require(self.learning_episodes != 0, "learning_episodes")?;
         Ok(())
     }
 }

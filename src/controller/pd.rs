@@ -18,7 +18,7 @@
 //! as [`Derivative`] says.
 
 use super::clamp;
-use crate::error::Error;
+use crate::error::{Error, require};
 use crate::vector::Vector;
 
 /// Which signal [`Pd::update`] differentiates.
@@ -62,12 +62,8 @@ impl<const A: usize> Pd<A> {
     /// Gains per axis; each must be finite and ≥ 0. No output limit, derivative on
     /// measurement for [`Pd::update`].
     pub fn try_new(kp: Vector<A>, kd: Vector<A>) -> Result<Self, Error> {
-        if kp.iter().any(|k| !(k.is_finite() && *k >= 0.0)) {
-            return Err(Error::InvalidParameter("kp"));
-        }
-        if kd.iter().any(|k| !(k.is_finite() && *k >= 0.0)) {
-            return Err(Error::InvalidParameter("kd"));
-        }
+        require(kp.iter().all(|k| k.is_finite() && *k >= 0.0), "kp")?;
+        require(kd.iter().all(|k| k.is_finite() && *k >= 0.0), "kd")?;
         Ok(Self {
             kp,
             kd,
@@ -79,9 +75,7 @@ impl<const A: usize> Pd<A> {
 
     /// Limits |u_i| to `limit[i]` (> 0; `f32::INFINITY` for no limit on that axis).
     pub fn with_limit(mut self, limit: Vector<A>) -> Result<Self, Error> {
-        if limit.iter().any(|l| l.is_nan() || *l <= 0.0) {
-            return Err(Error::InvalidParameter("limit"));
-        }
+        require(limit.iter().all(|l| *l > 0.0), "limit")?;
         self.limit = limit;
         Ok(self)
     }

@@ -20,7 +20,7 @@
 use core::f32::consts::TAU;
 
 use super::{Controller, Pd, clamp};
-use crate::error::Error;
+use crate::error::{Error, require};
 use crate::vector::{Vector, unrolled};
 
 /// Features φ ∈ R^F of the state and of the time since the episode began.
@@ -73,9 +73,7 @@ impl<const S: usize> StateFeatures<S> {
 
     /// φ = scale ∘ state; every scale must be finite.
     pub fn scaled(scale: Vector<S>) -> Result<Self, Error> {
-        if scale.iter().any(|s| !s.is_finite()) {
-            return Err(Error::InvalidParameter("scale"));
-        }
+        require(scale.iter().all(|s| s.is_finite()), "scale")?;
         Ok(Self { scale })
     }
 }
@@ -110,15 +108,12 @@ impl<const K: usize> PeriodicRbf<K> {
     /// standard deviation (1/√h rad) is half the spacing between kernels (2π/K rad).
     pub fn try_new(period: f32, min_period: f32, max_period: f32) -> Result<Self, Error> {
         const { assert!(K > 0, "at least one kernel") };
-        if !(min_period.is_finite() && min_period > 0.0) {
-            return Err(Error::InvalidParameter("min_period"));
-        }
-        if !(max_period.is_finite() && max_period >= min_period) {
-            return Err(Error::InvalidParameter("max_period"));
-        }
-        if !(period >= min_period && period <= max_period) {
-            return Err(Error::InvalidParameter("period"));
-        }
+        require(min_period.is_finite() && min_period > 0.0, "min_period")?;
+        require(
+            max_period.is_finite() && max_period >= min_period,
+            "max_period",
+        )?;
+        require(period >= min_period && period <= max_period, "period")?;
         let k = K as f32 / core::f32::consts::PI;
         Ok(Self {
             period,
@@ -130,9 +125,7 @@ impl<const K: usize> PeriodicRbf<K> {
 
     /// Sets the kernel width h (> 0, finite).
     pub fn with_width(mut self, width: f32) -> Result<Self, Error> {
-        if !(width.is_finite() && width > 0.0) {
-            return Err(Error::InvalidParameter("width"));
-        }
+        require(width.is_finite() && width > 0.0, "width")?;
         self.width = width;
         Ok(self)
     }
@@ -198,9 +191,10 @@ pub struct LinearPolicy<const C: usize, const F: usize, M> {
 impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
     /// A policy over `map` whose correction a stays within ±`envelope[a]` (> 0, finite).
     pub fn try_new(map: M, envelope: Vector<C>) -> Result<Self, Error> {
-        if envelope.iter().any(|e| !(e.is_finite() && *e > 0.0)) {
-            return Err(Error::InvalidParameter("envelope"));
-        }
+        require(
+            envelope.iter().all(|e| e.is_finite() && *e > 0.0),
+            "envelope",
+        )?;
         Ok(Self { map, envelope })
     }
 
@@ -379,12 +373,8 @@ impl<const K: usize, const P: usize> PeriodicPd<K, P> {
         policy: LinearPolicy<3, K, PeriodicRbf<K>>,
     ) -> Result<Self, Error> {
         const { assert!(P == 3 * K + 1, "θ = [W (3×K) | period offset]") };
-        if knee_weights.iter().any(|w| !w.is_finite()) {
-            return Err(Error::InvalidParameter("knee_weights"));
-        }
-        if !(hip_gain.is_finite() && hip_offset.is_finite()) {
-            return Err(Error::InvalidParameter("hip"));
-        }
+        require(knee_weights.iter().all(|w| w.is_finite()), "knee_weights")?;
+        require(hip_gain.is_finite() && hip_offset.is_finite(), "hip")?;
         Ok(Self {
             pd,
             knee_weights,

@@ -99,7 +99,7 @@ use heapless::Vec;
 use rand_core::RngCore;
 
 use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, keep_ranked, normal_pair_f32};
-use super::{check_stopping, default_is_const, ledger_accessors};
+use super::{check_stopping, default_is_const, ledger_accessors, require};
 
 /// How the costs of a batch become the probabilities P_k of the update (paper section 3.3).
 /// Every scheme gives weights that are non-negative, sum to 1 and do not increase with cost.
@@ -219,27 +219,23 @@ impl CemConfig {
         {
             return Err(Error::InvalidParameter("h"));
         }
-        if self.elite.is_some_and(|e| e == 0 || e > E) {
-            return Err(Error::InvalidParameter("elite"));
-        }
-        if !non_negative(self.min_variance) {
-            return Err(Error::InvalidParameter("min_variance"));
-        }
+        require(self.elite.is_none_or(|e| e != 0 && e <= E), "elite")?;
+        require(non_negative(self.min_variance), "min_variance")?;
         if !(self.max_variance.is_finite()
             && self.max_variance > 0.0
             && self.max_variance >= self.min_variance)
         {
             return Err(Error::InvalidParameter("max_variance"));
         }
-        if !(non_negative(self.initial_variance) && self.within_limits(self.initial_variance)) {
-            return Err(Error::InvalidParameter("initial_variance"));
-        }
-        if !(self.learning_rate > 0.0 && self.learning_rate <= 1.0) {
-            return Err(Error::InvalidParameter("learning_rate"));
-        }
-        if !non_negative(self.exploration_floor) {
-            return Err(Error::InvalidParameter("exploration_floor"));
-        }
+        require(
+            non_negative(self.initial_variance) && self.within_limits(self.initial_variance),
+            "initial_variance",
+        )?;
+        require(
+            self.learning_rate > 0.0 && self.learning_rate <= 1.0,
+            "learning_rate",
+        )?;
+        require(non_negative(self.exploration_floor), "exploration_floor")?;
         check_stopping(Some(self.tolerance), self.max_evaluations)
     }
 

@@ -118,7 +118,7 @@ use nalgebra::{
 use rand_core::RngCore;
 
 use super::{Ledger, Optimizer, Status, keep_ranked};
-use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors};
+use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
 use crate::vector::unrolled;
@@ -246,12 +246,8 @@ impl CmaesConfig {
     pub fn validate(&self) -> Result<(), Error> {
         let non_negative = |v: f32| v.is_finite() && v >= 0.0;
         check_sigmas(self.initial_sigma, self.max_sigma)?;
-        if !non_negative(self.penalty) {
-            return Err(Error::InvalidParameter("penalty"));
-        }
-        if self.eigen_interval == 0 {
-            return Err(Error::InvalidParameter("eigen_interval"));
-        }
+        require(non_negative(self.penalty), "penalty")?;
+        require(self.eigen_interval != 0, "eigen_interval")?;
         check_stopping(Some(self.tolerance), self.max_evaluations)
     }
 }

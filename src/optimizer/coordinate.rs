@@ -54,7 +54,7 @@
 use rand_core::RngCore;
 
 use super::{Bounds, Error, Ledger, Optimizer, Status, Vector};
-use super::{check_stopping, default_is_const, ledger_accessors};
+use super::{check_stopping, default_is_const, ledger_accessors, require};
 
 /// Parameters of [`CoordinateSearch`]. Plain fields, checked by [`CoordinateConfig::validate`]
 /// (and by the optimizer's constructors).
@@ -90,21 +90,23 @@ impl CoordinateConfig {
     /// `Ok` when every parameter is in its range, else the first offending field.
     pub fn validate(&self) -> Result<(), Error> {
         let in_open_unit = |v: f32| v > 0.0 && v < 1.0;
-        if !(self.initial_step.is_finite() && self.initial_step > 0.0) {
-            return Err(Error::InvalidParameter("initial_step"));
-        }
-        if !in_open_unit(self.contraction) {
-            return Err(Error::InvalidParameter("contraction"));
-        }
-        if !(self.expansion.is_finite() && self.expansion > 1.0) {
-            return Err(Error::InvalidParameter("expansion"));
-        }
-        if !in_open_unit(self.sufficient_decrease) {
-            return Err(Error::InvalidParameter("sufficient_decrease"));
-        }
-        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
-            return Err(Error::InvalidParameter("tolerance"));
-        }
+        require(
+            self.initial_step.is_finite() && self.initial_step > 0.0,
+            "initial_step",
+        )?;
+        require(in_open_unit(self.contraction), "contraction")?;
+        require(
+            self.expansion.is_finite() && self.expansion > 1.0,
+            "expansion",
+        )?;
+        require(
+            in_open_unit(self.sufficient_decrease),
+            "sufficient_decrease",
+        )?;
+        require(
+            self.tolerance.is_finite() && self.tolerance > 0.0,
+            "tolerance",
+        )?;
         check_stopping(None, self.max_evaluations)
     }
 }
@@ -192,9 +194,10 @@ impl<const N: usize> CoordinateSearch<N> {
         config: CoordinateConfig,
     ) -> Result<Self, Error> {
         config.validate()?;
-        if steps.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(Error::InvalidParameter("initial_step"));
-        }
+        require(
+            steps.iter().all(|s| s.is_finite() && *s > 0.0),
+            "initial_step",
+        )?;
         bounds.check(&start, "start")?;
         Ok(Self {
             bounds,

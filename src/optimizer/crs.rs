@@ -28,7 +28,7 @@
 use rand_core::RngCore;
 
 use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, random_index};
-use super::{check_stopping, default_is_const, ledger_accessors};
+use super::{check_stopping, default_is_const, ledger_accessors, require};
 use crate::vector::unrolled;
 
 /// Parameters of [`ControlledRandomSearch`].
@@ -55,9 +55,7 @@ impl CrsConfig {
     /// `Ok` when every parameter is in its range, else the first offending field.
     pub fn validate(&self) -> Result<(), Error> {
         check_stopping(Some(self.tolerance), self.max_evaluations)?;
-        if self.max_redraws == 0 {
-            return Err(Error::InvalidParameter("max_redraws"));
-        }
+        require(self.max_redraws != 0, "max_redraws")?;
         Ok(())
     }
 }

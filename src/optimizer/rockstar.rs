@@ -174,7 +174,7 @@ use nalgebra::SMatrix;
 use rand_core::RngCore;
 
 use super::{Ledger, Optimizer, Status};
-use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors};
+use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
 use crate::{Bounds, Error, Vector};
@@ -292,42 +292,18 @@ impl RockstarConfig {
         let non_negative = |v: f32| v.is_finite() && v >= 0.0;
         check_sigmas(self.initial_sigma, self.max_sigma)?;
         // ϑ = −P/(2 ln λ) must be a usable, finite kernel scale.
-        if !(self.lambda > 1e-6 && self.lambda < 1.0 - 1e-6) {
-            return Err(Error::InvalidParameter("lambda"));
-        }
-        if !positive(self.near_radius) {
-            return Err(Error::InvalidParameter("near_radius"));
-        }
-        if self.initial_samples < 2 {
-            return Err(Error::InvalidParameter("initial_samples"));
-        }
-        if !positive(self.step_gain) {
-            return Err(Error::InvalidParameter("step_gain"));
-        }
-        if self.descent_iterations == 0 {
-            return Err(Error::InvalidParameter("descent_iterations"));
-        }
-        if !positive(self.trust_radius) {
-            return Err(Error::InvalidParameter("trust_radius"));
-        }
-        if !non_negative(self.descent_tolerance) {
-            return Err(Error::InvalidParameter("descent_tolerance"));
-        }
-        if !positive(self.kappa) {
-            return Err(Error::InvalidParameter("kappa"));
-        }
-        if self.zeta.is_some_and(|z| !(z.is_finite() && z > 1.0)) {
-            return Err(Error::InvalidParameter("zeta"));
-        }
-        if self.xi.is_some_and(|x| !positive(x)) {
-            return Err(Error::InvalidParameter("xi"));
-        }
-        if self.c_c.is_some_and(|c| !(c > 0.0 && c <= 1.0)) {
-            return Err(Error::InvalidParameter("c_c"));
-        }
-        if self.c_cov.is_some_and(|c| !(c > 0.0 && c < 1.0)) {
-            return Err(Error::InvalidParameter("c_cov"));
-        }
+        require(self.lambda > 1e-6 && self.lambda < 1.0 - 1e-6, "lambda")?;
+        require(positive(self.near_radius), "near_radius")?;
+        require(self.initial_samples >= 2, "initial_samples")?;
+        require(positive(self.step_gain), "step_gain")?;
+        require(self.descent_iterations != 0, "descent_iterations")?;
+        require(positive(self.trust_radius), "trust_radius")?;
+        require(non_negative(self.descent_tolerance), "descent_tolerance")?;
+        require(positive(self.kappa), "kappa")?;
+        require(self.zeta.is_none_or(|z| z.is_finite() && z > 1.0), "zeta")?;
+        require(self.xi.is_none_or(positive), "xi")?;
+        require(self.c_c.is_none_or(|c| c > 0.0 && c <= 1.0), "c_c")?;
+        require(self.c_cov.is_none_or(|c| c > 0.0 && c < 1.0), "c_cov")?;
         check_stopping(Some(self.tolerance), self.max_evaluations)
     }
 }
@@ -360,9 +336,7 @@ impl Constants {
             .zeta
             .unwrap_or_else(|| libm::powf(1.3, 1.0 / libm::logf(nf + 2.5)));
         let xi = config.xi.unwrap_or_else(|| libm::powf(zeta, 0.3));
-        if !(zeta * xi > 1.0 && (zeta * xi).is_finite()) {
-            return Err(Error::InvalidParameter("xi"));
-        }
+        require(zeta * xi > 1.0 && (zeta * xi).is_finite(), "xi")?;
         Ok(Self {
             kernel: -p / (2.0 * libm::logf(config.lambda)),
             near_bound: config.near_radius * p,
@@ -504,9 +478,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             assert!(M <= u16::MAX as usize, "at most 65535 remembered rollouts");
         }
         config.validate()?;
-        if config.initial_samples as usize > M {
-            return Err(Error::InvalidParameter("initial_samples"));
-        }
+        require((config.initial_samples as usize) <= M, "initial_samples")?;
         let constants = Constants::new(N, &config)?;
         bounds.check(&start, "start")?;
         let unit = UnitMap::new(&bounds);

@@ -71,7 +71,7 @@
 use rand_core::RngCore;
 
 use super::{Best, Bounds, Error, Ledger, Optimizer, Vector, unit_f32};
-use super::{check_stopping, default_is_const, ledger_accessors};
+use super::{check_stopping, default_is_const, ledger_accessors, require};
 
 mod classifier;
 
@@ -179,15 +179,9 @@ impl Suppression {
 
     /// `Ok` when every field is in its range, else the first offending field.
     pub fn validate(&self) -> Result<(), Error> {
-        if self.non_update_allowed == 0 {
-            return Err(Error::InvalidParameter("non_update_allowed"));
-        }
-        if self.resample_times == 0 {
-            return Err(Error::InvalidParameter("resample_times"));
-        }
-        if !(0.0..=1.0).contains(&self.balance_rate) {
-            return Err(Error::InvalidParameter("balance_rate"));
-        }
+        require(self.non_update_allowed != 0, "non_update_allowed")?;
+        require(self.resample_times != 0, "resample_times")?;
+        require((0.0..=1.0).contains(&self.balance_rate), "balance_rate")?;
         Ok(())
     }
 }
@@ -198,9 +192,7 @@ fn validate_common(
     uncertain_bits: Option<u8>,
     max_evaluations: u32,
 ) -> Result<(), Error> {
-    if !(0.0..=1.0).contains(&exploration_rate) {
-        return Err(Error::InvalidParameter("exploration_rate"));
-    }
+    require((0.0..=1.0).contains(&exploration_rate), "exploration_rate")?;
     if let Some(ub) = uncertain_bits
         && (ub == 0 || usize::from(ub) > MAX_UNCERTAIN_BITS)
     {

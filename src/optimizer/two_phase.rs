@@ -25,6 +25,7 @@
 use rand_core::RngCore;
 
 use super::{Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector};
+use crate::error::require;
 
 /// Which phase a [`TwoPhase`] is in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -73,13 +74,12 @@ impl<G: Optimizer<N>, const N: usize> TwoPhase<G, N> {
         local_steps: Vector<N>,
         local_config: CoordinateConfig,
     ) -> Result<Self, Error> {
-        if global_budget == 0 {
-            return Err(Error::InvalidParameter("global_budget"));
-        }
+        require(global_budget != 0, "global_budget")?;
         local_config.validate()?;
-        if local_steps.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(Error::InvalidParameter("initial_step"));
-        }
+        require(
+            local_steps.iter().all(|s| s.is_finite() && *s > 0.0),
+            "initial_step",
+        )?;
         Ok(Self {
             global,
             global_budget,
