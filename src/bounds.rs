@@ -108,12 +108,14 @@ impl<const N: usize> Bounds<N> {
     }
 }
 
-/// The affine map between a box and [−1, 1]ⁿ, x = (θ − centre) / half-width, for the
+/// A box with its affine map to [−1, 1]ⁿ, x = (θ − centre) / half-width, for the
 /// optimizers that search in normalised coordinates (`Cmaes`, `Rockstar`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub(crate) struct UnitMap<const N: usize> {
+    /// The box.
+    pub(crate) bounds: Bounds<N>,
     centre: Vector<N>,
     half: Vector<N>,
 }
@@ -122,11 +124,12 @@ impl<const N: usize> UnitMap<N> {
     /// The map of `bounds`. Halves first: `upper − lower` would overflow near ±f32::MAX. The
     /// floor keeps the division of [`Self::unit_of`] finite for boxes narrower than two
     /// subnormals.
-    pub(crate) fn new(bounds: &Bounds<N>) -> Self {
+    pub(crate) fn new(bounds: Bounds<N>) -> Self {
         let (lo, up) = (bounds.lower(), bounds.upper());
         Self {
             centre: Vector::from_fn(|i, _| 0.5 * up[i] + 0.5 * lo[i]),
             half: Vector::from_fn(|i, _| (0.5 * up[i] - 0.5 * lo[i]).max(f32::MIN_POSITIVE)),
+            bounds,
         }
     }
 
@@ -135,10 +138,11 @@ impl<const N: usize> UnitMap<N> {
         (theta - self.centre).component_div(&self.half)
     }
 
-    /// θ = centre + half-width ∘ x, projected onto `bounds` (rounding, or x outside
+    /// θ = centre + half-width ∘ x, projected onto the box (rounding, or x outside
     /// [−1, 1]ⁿ).
-    pub(crate) fn theta_of(&self, bounds: &Bounds<N>, x: &Vector<N>) -> Vector<N> {
-        bounds.clamp(&(self.centre + self.half.component_mul(x)))
+    pub(crate) fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
+        self.bounds
+            .clamp(&(self.centre + self.half.component_mul(x)))
     }
 }
 

@@ -377,10 +377,9 @@ struct Sample<const N: usize> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Cmaes<const N: usize, const L: usize> {
-    bounds: Bounds<N>,
     config: CmaesConfig,
     constants: Constants<L>,
-    /// The box's map to [−1, 1]ⁿ: θ = centre + half-width ∘ x.
+    /// The box and its map to [−1, 1]ⁿ: θ = centre + half-width ∘ x.
     unit: UnitMap<N>,
     /// m, normalised (may lie outside [−1, 1]ⁿ).
     mean: Vector<N>,
@@ -418,10 +417,9 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
         }
         config.validate()?;
         bounds.check(&mean, "mean")?;
-        let unit = UnitMap::new(&bounds);
+        let unit = UnitMap::new(bounds);
         let normalised = unit.unit_of(&mean);
         Ok(Self {
-            bounds,
             config,
             constants: Constants::new(N),
             unit,
@@ -498,7 +496,7 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
 
     /// θ of a normalised point of the box.
     fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
-        self.unit.theta_of(&self.bounds, x)
+        self.unit.theta_of(x)
     }
 
     /// y = B D z.
@@ -709,7 +707,7 @@ impl<const N: usize, const L: usize> Optimizer<N> for Cmaes<N, L> {
         Ok(())
     }
 
-    ledger_accessors!();
+    ledger_accessors!(unit.bounds);
 }
 
 #[cfg(test)]

@@ -10,6 +10,9 @@ use crate::vector::Vector;
 /// from its `ledger` and `bounds` fields; used inside each `impl Optimizer<N> for …` block.
 macro_rules! ledger_accessors {
     () => {
+        $crate::optimizer::ledger_accessors!(bounds);
+    };
+    ($($bounds:ident).+) => {
         fn best(&self) -> Option<$crate::optimizer::Best<N>> {
             self.ledger.best()
         }
@@ -27,7 +30,7 @@ macro_rules! ledger_accessors {
         }
 
         fn bounds(&self) -> &$crate::optimizer::Bounds<N> {
-            &self.bounds
+            &self.$($bounds).+
         }
     };
 }

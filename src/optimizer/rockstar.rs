@@ -422,10 +422,9 @@ struct Sums<const N: usize> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Rockstar<const N: usize, const M: usize> {
-    bounds: Bounds<N>,
     config: RockstarConfig,
     constants: Constants,
-    /// The box's map to [−1, 1]ⁿ: θ = centre + half-width ∘ x.
+    /// The box and its map to [−1, 1]ⁿ: θ = centre + half-width ∘ x.
     unit: UnitMap<N>,
     /// θ*, normalised, always inside [−1, 1]ⁿ and finite.
     theta_star: Vector<N>,
@@ -481,10 +480,9 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         require((config.initial_samples as usize) <= M, "initial_samples")?;
         let constants = Constants::new(N, &config)?;
         bounds.check(&start, "start")?;
-        let unit = UnitMap::new(&bounds);
+        let unit = UnitMap::new(bounds);
         let x = clamp_unit(&unit.unit_of(&start));
         Ok(Self {
-            bounds,
             config,
             constants,
             unit,
@@ -588,7 +586,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
 
     /// θ of a normalised point of the box.
     fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
-        self.unit.theta_of(&self.bounds, x)
+        self.unit.theta_of(x)
     }
 
     /// Remembers a rollout (whitened), forgetting the oldest when the memory is full.
@@ -993,7 +991,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
         Ok(())
     }
 
-    ledger_accessors!();
+    ledger_accessors!(unit.bounds);
 }
 
 /// `x` projected onto [−1, 1]ⁿ; NaN maps to −1.
