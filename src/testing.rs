@@ -249,3 +249,39 @@ pub(crate) fn tell_inside<const N: usize, O: Optimizer<N>>(
         told += 1;
     }
 }
+
+/// One case of [`check_rejected_configs`]: a change to the default configuration and the
+/// parameter the error must name.
+pub type Rejection<C> = (fn(&mut C), &'static str);
+
+/// Checks: `build` refuses each change of `default` with [`Error::InvalidParameter`] naming
+/// the case's parameter.
+pub fn check_rejected_configs<C: Copy, T>(
+    default: C,
+    build: impl Fn(C) -> Result<T, Error>,
+    cases: &[Rejection<C>],
+) {
+    for (i, &(change, parameter)) in cases.iter().enumerate() {
+        let mut config = default;
+        change(&mut config);
+        let error = build(config).err();
+        assert_eq!(
+            error,
+            Some(Error::InvalidParameter(parameter)),
+            "case {i} ({parameter})"
+        );
+    }
+}
+
+/// Checks: `build` refuses a start outside the box [−1, 1]² and a non-finite one, each
+/// with the error naming `name`.
+pub fn check_rejected_starts<T>(name: &'static str, build: impl Fn(Vector<2>) -> Result<T, Error>) {
+    assert_eq!(
+        build([2.0, 0.0].into()).err(),
+        Some(Error::OutOfBounds(name))
+    );
+    assert_eq!(
+        build([f32::NAN, 0.0].into()).err(),
+        Some(Error::NonFinite(name))
+    );
+}

@@ -484,7 +484,10 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testing::{any_bounds, check_any_costs, check_call_order, check_seeded, rng};
+    use crate::testing::{
+        any_bounds, check_any_costs, check_call_order, check_rejected_configs,
+        check_rejected_starts, check_seeded, rng,
+    };
     use proptest::prelude::*;
 
     fn weights_of(weighting: Weighting, sorted: &[f32], worst: f32) -> std::vec::Vec<f32> {
@@ -783,50 +786,38 @@ mod tests {
     fn constructors_name_the_bad_parameter() {
         let b = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
         let z = Vector::<2>::zeros();
-        let bad = |f: fn(&mut CemConfig)| {
-            let mut c = CemConfig::DEFAULT;
-            f(&mut c);
-            DiagonalCem::<2, 4, 3>::try_new(b, z, c).unwrap_err()
-        };
         let p = Error::InvalidParameter;
-        assert_eq!(bad(|c| c.weighting = Weighting::PiBb { h: 0.0 }), p("h"));
-        assert_eq!(
-            bad(|c| c.weighting = Weighting::PiBb { h: f32::NAN }),
-            p("h")
+        check_rejected_configs(
+            CemConfig::DEFAULT,
+            |c| DiagonalCem::<2, 4, 3>::try_new(b, z, c),
+            &[
+                (|c| c.weighting = Weighting::PiBb { h: 0.0 }, "h"),
+                (|c| c.weighting = Weighting::PiBb { h: f32::NAN }, "h"),
+                (|c| c.elite = Some(0), "elite"),
+                (|c| c.elite = Some(4), "elite"),
+                (|c| c.initial_variance = -1.0, "initial_variance"),
+                (|c| c.initial_variance = f32::INFINITY, "initial_variance"),
+                (|c| c.min_variance = 0.1, "initial_variance"),
+                (|c| c.max_variance = 1e-3, "initial_variance"),
+                (|c| c.min_variance = -1.0, "min_variance"),
+                (|c| c.max_variance = 0.0, "max_variance"),
+                (|c| c.max_variance = f32::INFINITY, "max_variance"),
+                (
+                    |c| {
+                        c.min_variance = 2.0;
+                        c.max_variance = 1.0;
+                    },
+                    "max_variance",
+                ),
+                (|c| c.learning_rate = 0.0, "learning_rate"),
+                (|c| c.learning_rate = 1.5, "learning_rate"),
+                (|c| c.exploration_floor = -1e-3, "exploration_floor"),
+                (|c| c.tolerance = f32::NAN, "tolerance"),
+                (|c| c.max_evaluations = 0, "max_evaluations"),
+            ],
         );
-        assert_eq!(bad(|c| c.elite = Some(0)), p("elite"));
-        assert_eq!(bad(|c| c.elite = Some(4)), p("elite"));
-        assert_eq!(bad(|c| c.initial_variance = -1.0), p("initial_variance"));
-        assert_eq!(
-            bad(|c| c.initial_variance = f32::INFINITY),
-            p("initial_variance")
-        );
-        assert_eq!(bad(|c| c.min_variance = 0.1), p("initial_variance"));
-        assert_eq!(bad(|c| c.max_variance = 1e-3), p("initial_variance"));
-        assert_eq!(bad(|c| c.min_variance = -1.0), p("min_variance"));
-        assert_eq!(bad(|c| c.max_variance = 0.0), p("max_variance"));
-        assert_eq!(bad(|c| c.max_variance = f32::INFINITY), p("max_variance"));
-        assert_eq!(
-            bad(|c| {
-                c.min_variance = 2.0;
-                c.max_variance = 1.0;
-            }),
-            p("max_variance")
-        );
-        assert_eq!(bad(|c| c.learning_rate = 0.0), p("learning_rate"));
-        assert_eq!(bad(|c| c.learning_rate = 1.5), p("learning_rate"));
-        assert_eq!(bad(|c| c.exploration_floor = -1e-3), p("exploration_floor"));
-        assert_eq!(bad(|c| c.tolerance = f32::NAN), p("tolerance"));
-        assert_eq!(bad(|c| c.max_evaluations = 0), p("max_evaluations"));
         let c = CemConfig::DEFAULT;
-        assert_eq!(
-            DiagonalCem::<2, 4>::try_new(b, [2.0, 0.0].into(), c),
-            Err(Error::OutOfBounds("mean"))
-        );
-        assert_eq!(
-            DiagonalCem::<2, 4>::try_new(b, [f32::NAN, 0.0].into(), c),
-            Err(Error::NonFinite("mean"))
-        );
+        check_rejected_starts("mean", |m| DiagonalCem::<2, 4>::try_new(b, m, c));
         assert_eq!(
             DiagonalCem::<2, 4>::try_with_variances(b, z, [0.1, -0.1].into(), c),
             Err(p("initial_variance"))

@@ -715,8 +715,9 @@ mod tests {
     use super::*;
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
     use crate::testing::{
-        any_bounds, check_any_costs, check_rejected_calls_change_nothing, check_seeded,
-        check_tell_after, ellipsoid, evaluations_to_target, rng, rotation, tell_inside,
+        any_bounds, check_any_costs, check_rejected_calls_change_nothing, check_rejected_configs,
+        check_rejected_starts, check_seeded, check_tell_after, ellipsoid, evaluations_to_target,
+        rng, rotation, tell_inside,
     };
     use proptest::prelude::*;
 
@@ -1160,31 +1161,24 @@ mod tests {
     fn constructor_names_the_bad_parameter() {
         let b = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
         let z = Vector::<2>::zeros();
-        let bad = |f: fn(&mut CmaesConfig)| {
-            let mut c = CmaesConfig::DEFAULT;
-            f(&mut c);
-            Cmaes::<2, 4>::try_new(b, z, c).unwrap_err()
-        };
-        let p = Error::InvalidParameter;
-        assert_eq!(bad(|c| c.initial_sigma = 0.0), p("initial_sigma"));
-        assert_eq!(bad(|c| c.initial_sigma = f32::NAN), p("initial_sigma"));
-        assert_eq!(bad(|c| c.initial_sigma = 20.0), p("initial_sigma"));
-        assert_eq!(bad(|c| c.max_sigma = f32::INFINITY), p("max_sigma"));
-        assert_eq!(bad(|c| c.max_sigma = -1.0), p("max_sigma"));
-        assert_eq!(bad(|c| c.penalty = -1.0), p("penalty"));
-        assert_eq!(bad(|c| c.penalty = f32::INFINITY), p("penalty"));
-        assert_eq!(bad(|c| c.eigen_interval = 0), p("eigen_interval"));
-        assert_eq!(bad(|c| c.tolerance = -1e-3), p("tolerance"));
-        assert_eq!(bad(|c| c.max_evaluations = 0), p("max_evaluations"));
+        check_rejected_configs(
+            CmaesConfig::DEFAULT,
+            |c| Cmaes::<2, 4>::try_new(b, z, c),
+            &[
+                (|c| c.initial_sigma = 0.0, "initial_sigma"),
+                (|c| c.initial_sigma = f32::NAN, "initial_sigma"),
+                (|c| c.initial_sigma = 20.0, "initial_sigma"),
+                (|c| c.max_sigma = f32::INFINITY, "max_sigma"),
+                (|c| c.max_sigma = -1.0, "max_sigma"),
+                (|c| c.penalty = -1.0, "penalty"),
+                (|c| c.penalty = f32::INFINITY, "penalty"),
+                (|c| c.eigen_interval = 0, "eigen_interval"),
+                (|c| c.tolerance = -1e-3, "tolerance"),
+                (|c| c.max_evaluations = 0, "max_evaluations"),
+            ],
+        );
         let c = CmaesConfig::DEFAULT;
-        assert_eq!(
-            Cmaes::<2, 4>::try_new(b, [2.0, 0.0].into(), c),
-            Err(Error::OutOfBounds("mean"))
-        );
-        assert_eq!(
-            Cmaes::<2, 4>::try_new(b, [f32::NAN, 0.0].into(), c),
-            Err(Error::NonFinite("mean"))
-        );
+        check_rejected_starts("mean", |m| Cmaes::<2, 4>::try_new(b, m, c));
     }
 
     proptest! {

@@ -437,7 +437,10 @@ impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
 mod tests {
     use super::*;
     use crate::optimizer::Best;
-    use crate::testing::{any_bounds, check_call_order, check_seeded, rng};
+    use crate::testing::{
+        any_bounds, check_call_order, check_rejected_configs, check_rejected_starts, check_seeded,
+        rng,
+    };
     use proptest::prelude::*;
 
     /// Runs the search to its stop (or `budget` evaluations) and returns the best.
@@ -576,48 +579,21 @@ mod tests {
     fn constructors_name_the_bad_parameter() {
         let b = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
         let z = Vector::<2>::zeros();
-        let bad = |f: fn(&mut CoordinateConfig)| {
-            let mut c = CoordinateConfig::DEFAULT;
-            f(&mut c);
-            CoordinateSearch::try_new(b, z, c).unwrap_err()
-        };
-        assert_eq!(
-            bad(|c| c.initial_step = 0.0),
-            Error::InvalidParameter("initial_step")
-        );
-        assert_eq!(
-            bad(|c| c.initial_step = f32::NAN),
-            Error::InvalidParameter("initial_step")
-        );
-        assert_eq!(
-            bad(|c| c.contraction = 1.0),
-            Error::InvalidParameter("contraction")
-        );
-        assert_eq!(
-            bad(|c| c.expansion = 1.0),
-            Error::InvalidParameter("expansion")
-        );
-        assert_eq!(
-            bad(|c| c.sufficient_decrease = 0.0),
-            Error::InvalidParameter("sufficient_decrease")
-        );
-        assert_eq!(
-            bad(|c| c.tolerance = -1.0),
-            Error::InvalidParameter("tolerance")
-        );
-        assert_eq!(
-            bad(|c| c.max_evaluations = 0),
-            Error::InvalidParameter("max_evaluations")
+        check_rejected_configs(
+            CoordinateConfig::DEFAULT,
+            |c| CoordinateSearch::try_new(b, z, c),
+            &[
+                (|c| c.initial_step = 0.0, "initial_step"),
+                (|c| c.initial_step = f32::NAN, "initial_step"),
+                (|c| c.contraction = 1.0, "contraction"),
+                (|c| c.expansion = 1.0, "expansion"),
+                (|c| c.sufficient_decrease = 0.0, "sufficient_decrease"),
+                (|c| c.tolerance = -1.0, "tolerance"),
+                (|c| c.max_evaluations = 0, "max_evaluations"),
+            ],
         );
         let c = CoordinateConfig::DEFAULT;
-        assert_eq!(
-            CoordinateSearch::try_new(b, [2.0, 0.0].into(), c),
-            Err(Error::OutOfBounds("start"))
-        );
-        assert_eq!(
-            CoordinateSearch::try_new(b, [f32::NAN, 0.0].into(), c),
-            Err(Error::NonFinite("start"))
-        );
+        check_rejected_starts("start", |s| CoordinateSearch::try_new(b, s, c));
         assert_eq!(
             CoordinateSearch::try_with_steps(b, z, [0.1, -0.1].into(), c),
             Err(Error::InvalidParameter("initial_step"))

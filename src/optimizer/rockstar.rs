@@ -1080,8 +1080,8 @@ mod tests {
     use crate::optimizer::{Best, Cmaes, CmaesConfig};
     use crate::testing::{
         any_wide_bounds, check_any_costs, check_call_order, check_rejected_calls_change_nothing,
-        check_seeded, check_tell_after, ellipsoid, evaluations_to_target, rng, rotation,
-        tell_inside,
+        check_rejected_configs, check_rejected_starts, check_seeded, check_tell_after, ellipsoid,
+        evaluations_to_target, rng, rotation, tell_inside,
     };
     use proptest::prelude::*;
     use rand_xoshiro::Xoshiro128PlusPlus;
@@ -1720,41 +1720,34 @@ mod tests {
     fn constructor_names_the_bad_parameter() {
         let b = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
         let z = Vector::<2>::zeros();
-        let bad = |f: fn(&mut RockstarConfig)| {
-            let mut c = RockstarConfig::DEFAULT;
-            f(&mut c);
-            Rockstar::<2, 4>::try_new(b, z, c).unwrap_err()
-        };
-        let p = Error::InvalidParameter;
-        assert_eq!(bad(|c| c.initial_sigma = 0.0), p("initial_sigma"));
-        assert_eq!(bad(|c| c.initial_sigma = 2.0), p("initial_sigma"));
-        assert_eq!(bad(|c| c.max_sigma = f32::NAN), p("max_sigma"));
-        assert_eq!(bad(|c| c.lambda = 1.0), p("lambda"));
-        assert_eq!(bad(|c| c.lambda = 0.0), p("lambda"));
-        assert_eq!(bad(|c| c.near_radius = 0.0), p("near_radius"));
-        assert_eq!(bad(|c| c.initial_samples = 1), p("initial_samples"));
-        assert_eq!(bad(|c| c.initial_samples = 5), p("initial_samples"));
-        assert_eq!(bad(|c| c.step_gain = -1.0), p("step_gain"));
-        assert_eq!(bad(|c| c.descent_iterations = 0), p("descent_iterations"));
-        assert_eq!(bad(|c| c.trust_radius = f32::INFINITY), p("trust_radius"));
-        assert_eq!(bad(|c| c.descent_tolerance = -1.0), p("descent_tolerance"));
-        assert_eq!(bad(|c| c.kappa = 0.0), p("kappa"));
-        assert_eq!(bad(|c| c.zeta = Some(1.0)), p("zeta"));
-        assert_eq!(bad(|c| c.xi = Some(0.0)), p("xi"));
-        assert_eq!(bad(|c| c.xi = Some(0.5)), p("xi"));
-        assert_eq!(bad(|c| c.c_c = Some(1.5)), p("c_c"));
-        assert_eq!(bad(|c| c.c_cov = Some(1.0)), p("c_cov"));
-        assert_eq!(bad(|c| c.tolerance = f32::NAN), p("tolerance"));
-        assert_eq!(bad(|c| c.max_evaluations = 0), p("max_evaluations"));
+        check_rejected_configs(
+            RockstarConfig::DEFAULT,
+            |c| Rockstar::<2, 4>::try_new(b, z, c),
+            &[
+                (|c| c.initial_sigma = 0.0, "initial_sigma"),
+                (|c| c.initial_sigma = 2.0, "initial_sigma"),
+                (|c| c.max_sigma = f32::NAN, "max_sigma"),
+                (|c| c.lambda = 1.0, "lambda"),
+                (|c| c.lambda = 0.0, "lambda"),
+                (|c| c.near_radius = 0.0, "near_radius"),
+                (|c| c.initial_samples = 1, "initial_samples"),
+                (|c| c.initial_samples = 5, "initial_samples"),
+                (|c| c.step_gain = -1.0, "step_gain"),
+                (|c| c.descent_iterations = 0, "descent_iterations"),
+                (|c| c.trust_radius = f32::INFINITY, "trust_radius"),
+                (|c| c.descent_tolerance = -1.0, "descent_tolerance"),
+                (|c| c.kappa = 0.0, "kappa"),
+                (|c| c.zeta = Some(1.0), "zeta"),
+                (|c| c.xi = Some(0.0), "xi"),
+                (|c| c.xi = Some(0.5), "xi"),
+                (|c| c.c_c = Some(1.5), "c_c"),
+                (|c| c.c_cov = Some(1.0), "c_cov"),
+                (|c| c.tolerance = f32::NAN, "tolerance"),
+                (|c| c.max_evaluations = 0, "max_evaluations"),
+            ],
+        );
         let c = RockstarConfig::DEFAULT;
-        assert_eq!(
-            Rockstar::<2, 4>::try_new(b, [2.0, 0.0].into(), c),
-            Err(Error::OutOfBounds("start"))
-        );
-        assert_eq!(
-            Rockstar::<2, 4>::try_new(b, [f32::NAN, 0.0].into(), c),
-            Err(Error::NonFinite("start"))
-        );
+        check_rejected_starts("start", |s| Rockstar::<2, 4>::try_new(b, s, c));
     }
 
     /// Checks the sizes quoted in the module docs: `Rockstar<18, 90>` and

@@ -822,7 +822,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
 mod tests {
     use super::*;
     use crate::optimizer::Status;
-    use crate::testing::{any_bounds, rng};
+    use crate::testing::{any_bounds, check_rejected_configs, rng};
     use proptest::prelude::*;
 
     fn sracos<const N: usize, const K: usize, const M: usize>(
@@ -1194,22 +1194,20 @@ mod tests {
     #[test]
     fn constructors_name_the_bad_parameter() {
         let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-        let bad = |f: fn(&mut SracosConfig)| {
-            let mut c = SracosConfig::DEFAULT;
-            f(&mut c);
-            Sracos::<3>::try_new(b, c).unwrap_err()
-        };
-        let e = Error::InvalidParameter;
-        assert_eq!(bad(|c| c.exploration_rate = -0.1), e("exploration_rate"));
-        assert_eq!(bad(|c| c.exploration_rate = 1.1), e("exploration_rate"));
-        assert_eq!(
-            bad(|c| c.exploration_rate = f32::NAN),
-            e("exploration_rate")
+        check_rejected_configs(
+            SracosConfig::DEFAULT,
+            |c| Sracos::<3>::try_new(b, c),
+            &[
+                (|c| c.exploration_rate = -0.1, "exploration_rate"),
+                (|c| c.exploration_rate = 1.1, "exploration_rate"),
+                (|c| c.exploration_rate = f32::NAN, "exploration_rate"),
+                (|c| c.uncertain_bits = Some(0), "uncertain_bits"),
+                (|c| c.uncertain_bits = Some(17), "uncertain_bits"),
+                (|c| c.uncertain_bits = Some(4), "uncertain_bits"),
+                (|c| c.max_evaluations = 0, "max_evaluations"),
+            ],
         );
-        assert_eq!(bad(|c| c.uncertain_bits = Some(0)), e("uncertain_bits"));
-        assert_eq!(bad(|c| c.uncertain_bits = Some(17)), e("uncertain_bits"));
-        assert_eq!(bad(|c| c.uncertain_bits = Some(4)), e("uncertain_bits"));
-        assert_eq!(bad(|c| c.max_evaluations = 0), e("max_evaluations"));
+        let e = Error::InvalidParameter;
         let with = |s: Suppression| {
             let c = SracosConfig {
                 suppression: Some(s),
