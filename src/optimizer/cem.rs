@@ -335,7 +335,6 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
         config: CemConfig,
     ) -> Result<Self, Error> {
         const {
-            assert!(N > 0, "an optimizer needs at least one parameter");
             assert!(K >= 2, "a batch needs at least two samples to rank");
             assert!(E >= 1 && E <= K, "the elite capacity E must be in 1..=K");
         }

@@ -412,7 +412,6 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
     /// σ = `config.initial_sigma` (relative to each half-width of the box).
     pub fn try_new(bounds: Bounds<N>, mean: Vector<N>, config: CmaesConfig) -> Result<Self, Error> {
         const {
-            assert!(N > 0, "an optimizer needs at least one parameter");
             assert!(L >= 2, "a generation needs at least two samples to rank");
         }
         config.validate()?;
@@ -451,7 +450,7 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
     /// The mean of the search distribution in parameter units, projected onto the box (the
     /// policy the search currently believes in).
     pub fn mean(&self) -> Vector<N> {
-        self.theta_of(&self.mean.map(|v| v.clamp(-1.0, 1.0)))
+        self.unit.theta_of(&self.mean.map(|v| v.clamp(-1.0, 1.0)))
     }
 
     /// The mean in normalised units (x = (θ − centre)/half-width), not projected.
@@ -492,11 +491,6 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
     /// How many times a non-finite state was reset (see the module docs); 0 in a normal run.
     pub fn recoveries(&self) -> u32 {
         self.recoveries
-    }
-
-    /// θ of a normalised point of the box.
-    fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
-        self.unit.theta_of(x)
     }
 
     /// y = B D z.
@@ -677,7 +671,7 @@ impl<const N: usize, const L: usize> Optimizer<N> for Cmaes<N, L> {
         let projected = x.map(|v| if v.is_nan() { -1.0 } else { v.clamp(-1.0, 1.0) });
         self.drawn = z;
         self.drawn_excess = (x - projected).norm_squared();
-        let theta = self.theta_of(&projected);
+        let theta = self.unit.theta_of(&projected);
         Ok(self.ledger.hand_out(theta))
     }
 

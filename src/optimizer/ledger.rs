@@ -52,7 +52,11 @@ pub(crate) struct Ledger<const N: usize> {
 
 impl<const N: usize> Ledger<N> {
     /// A fresh ledger allowing `budget` evaluations.
+    /// Every optimizer's constructor makes one, so this is where a dimension of zero is
+    /// refused at compile time (a box of [`Bounds::try_new`](crate::Bounds::try_new) already
+    /// cannot have one; this also covers a box read from a record).
     pub(crate) const fn new(budget: u32) -> Self {
+        const { assert!(N > 0, "an optimizer needs at least one parameter") };
         Self {
             pending: None,
             evaluations: 0,

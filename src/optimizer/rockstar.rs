@@ -472,7 +472,6 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         config: RockstarConfig,
     ) -> Result<Self, Error> {
         const {
-            assert!(N > 0, "an optimizer needs at least one parameter");
             assert!(M >= 2, "ROCK* regresses on at least two rollouts");
             assert!(M <= u16::MAX as usize, "at most 65535 remembered rollouts");
         }
@@ -518,7 +517,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     /// θ*, the minimum of the regressed cost J̃ (the start before the first update), in
     /// parameter units and inside the box: the policy to deploy.
     pub fn theta_star(&self) -> Vector<N> {
-        self.theta_of(&self.theta_star)
+        self.unit.theta_of(&self.theta_star)
     }
 
     /// θ* in normalised units (x = (θ − centre)/half-width, inside [−1, 1]ⁿ).
@@ -562,7 +561,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             let k = (start + j) % M;
             let w = self.samples.get(k)?;
             Some((
-                self.theta_of(&clamp_unit(&(self.factor * w))),
+                self.unit.theta_of(&clamp_unit(&(self.factor * w))),
                 *self.costs.get(k)?,
             ))
         })
@@ -582,11 +581,6 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     /// in a normal run.
     pub fn recoveries(&self) -> u32 {
         self.recoveries
-    }
-
-    /// θ of a normalised point of the box.
-    fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
-        self.unit.theta_of(x)
     }
 
     /// Remembers a rollout (whitened), forgetting the oldest when the memory is full.
@@ -974,7 +968,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
         let projected = clamp_unit(&x);
         self.drawn = projected;
         self.drawn_white = self.inverse * projected;
-        let theta = self.theta_of(&projected);
+        let theta = self.unit.theta_of(&projected);
         Ok(self.ledger.hand_out(theta))
     }
 
