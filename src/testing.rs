@@ -132,6 +132,19 @@ pub(crate) fn any_wide_bounds<const N: usize>() -> impl Strategy<Value = Bounds<
     })
 }
 
+/// A box drawn by `boxes` and a start drawn uniformly inside it, for property tests.
+pub(crate) fn with_start<const N: usize>(
+    boxes: impl Strategy<Value = Bounds<N>>,
+) -> impl Strategy<Value = (Bounds<N>, Vector<N>)> {
+    (boxes, prop::array::uniform::<_, N>(0.0f32..=1.0)).prop_map(|(bounds, frac)| {
+        let start = Vector::from_fn(|i, _| {
+            let (lo, hi) = (bounds.lower()[i], bounds.upper()[i]);
+            (lo + frac[i] * (hi - lo)).clamp(lo, hi)
+        });
+        (bounds, start)
+    })
+}
+
 /// A fixed rotation of R¹⁰ (for the ill-conditioned test problems of `Cmaes` and `Rockstar`): the product of two Householder reflections.
 pub(crate) fn rotation() -> SMatrix<f32, 10, 10> {
     let reflect = |v: Vector<10>| {
@@ -173,20 +186,21 @@ pub(crate) fn evaluations_to_target<const N: usize, O: Optimizer<N>>(
     hit
 }
 
-/// Drives `s` through `costs` (any f32) and checks after every step: the candidate is inside
-/// `bounds`; a finite cost is accepted, a non-finite one refused with the state unchanged;
-/// the best cost never rises; and `invariant(s)`, the optimizer's own. Stops early when the
-/// search stops.
+/// Drives `s` through `costs` (any f32) with the RNG seeded by `seed` and checks after every
+/// step: the candidate is inside `bounds`; a finite cost is accepted, a non-finite one refused
+/// with the state unchanged; the best cost never rises; and `invariant(s, cost)`, the
+/// optimizer's own, given the cost just told. Stops early when the search stops.
 pub(crate) fn check_any_costs<const N: usize, O>(
     s: &mut O,
     bounds: &Bounds<N>,
     costs: &[f32],
-    mut invariant: impl FnMut(&O) -> Result<(), TestCaseError>,
+    seed: u64,
+    mut invariant: impl FnMut(&O, f32) -> Result<(), TestCaseError>,
 ) -> Result<(), TestCaseError>
 where
     O: Optimizer<N> + Clone + PartialEq + core::fmt::Debug,
 {
-    let mut r = rng(1);
+    let mut r = rng(seed);
     let mut best = f32::INFINITY;
     for &cost in costs {
         let Ok(theta) = s.ask(&mut r) else { break };
@@ -199,7 +213,7 @@ where
             prop_assert_eq!(told, Err(Error::NonFinite("cost")));
             prop_assert_eq!(&*s, &before);
         }
-        invariant(s)?;
+        invariant(s, cost)?;
         let now = s.best().map_or(f32::INFINITY, |b| b.cost);
         prop_assert!(now <= best);
         best = now;

@@ -166,11 +166,72 @@ any_optimizer!(
 mod tests {
     use super::*;
     use crate::optimizer::{
-        CemConfig, CmaesConfig, CoordinateConfig, RockstarConfig, SracosConfig, Status,
+        CemConfig, CmaesConfig, CoordinateConfig, CrsConfig, Racos, RacosConfig, RockstarConfig,
+        SracosConfig, Status,
     };
+    use crate::testing::check_tell_after;
     use crate::{Bounds, Error, Vector};
+    use proptest::prelude::*;
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;
+
+    /// Every optimizer of the enum at N = 3 with its default configuration (CMA-ES with and
+    /// without the active update), for the contract that does not depend on the algorithm.
+    fn every_optimizer() -> [AnyOptimizer<3, 4, 2, 5>; 8] {
+        let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
+        let z = Vector::zeros();
+        let crs = || ControlledRandomSearch::try_new(b, CrsConfig::DEFAULT).unwrap();
+        let active = CmaesConfig {
+            active: true,
+            ..CmaesConfig::DEFAULT
+        };
+        [
+            CoordinateSearch::try_new(b, z, CoordinateConfig::DEFAULT)
+                .unwrap()
+                .into(),
+            crs().into(),
+            TwoPhase::try_new(crs(), 8, CoordinateConfig::DEFAULT)
+                .unwrap()
+                .into(),
+            Sracos::try_new(b, SracosConfig::DEFAULT).unwrap().into(),
+            DiagonalCem::try_new(b, z, CemConfig::DEFAULT)
+                .unwrap()
+                .into(),
+            Cmaes::try_new(b, z, CmaesConfig::DEFAULT).unwrap().into(),
+            Cmaes::try_new(b, z, active).unwrap().into(),
+            Rockstar::try_new(b, z, RockstarConfig::DEFAULT)
+                .unwrap()
+                .into(),
+        ]
+    }
+
+    proptest! {
+        /// Checks, for every optimizer (and RACOS): `tell` with any f32, with or without a
+        /// pending candidate, after any number of finite costs (extremes, subnormals and zero
+        /// included, so at any point of a batch or generation), never panics and is rejected
+        /// exactly when there is no candidate or the cost is not finite.
+        #[test]
+        fn tell_never_panics(
+            cost in proptest::num::f32::ANY,
+            ask_first in any::<bool>(),
+            warmup in prop::collection::vec(
+                prop_oneof![
+                    proptest::num::f32::NORMAL | proptest::num::f32::SUBNORMAL,
+                    Just(f32::MAX),
+                    Just(-f32::MAX),
+                    Just(0.0f32),
+                ],
+                0..40,
+            ),
+        ) {
+            for mut s in every_optimizer() {
+                check_tell_after(&mut s, &warmup, ask_first, cost)?;
+            }
+            let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
+            let mut racos: Racos<3> = Racos::try_new(b, RacosConfig::DEFAULT).unwrap();
+            check_tell_after(&mut racos, &warmup, ask_first, cost)?;
+        }
+    }
 
     /// Checks: through the enum, each variant answers exactly as the optimizer it wraps
     /// (same candidates, best, counters and status over 30 evaluations of a sphere), and a

@@ -485,7 +485,7 @@ mod tests {
     use super::*;
     use crate::testing::{
         any_bounds, check_any_costs, check_call_order, check_rejected_configs,
-        check_rejected_starts, check_seeded, rng,
+        check_rejected_starts, check_seeded, rng, with_start,
     };
     use proptest::prelude::*;
 
@@ -894,8 +894,7 @@ mod tests {
         /// never increases.
         #[test]
         fn candidates_in_bounds_variances_in_limits_bad_costs_change_nothing(
-            bounds in any_bounds::<4>(1e-3),
-            frac in prop::array::uniform4(0.0f32..=1.0),
+            (bounds, start) in with_start(any_bounds::<4>(1e-3)),
             weighting in any_weighting(),
             elite in 1usize..=6,
             adapt in any::<bool>(),
@@ -906,10 +905,6 @@ mod tests {
             initial in 0.0f32..=1.0,
             costs in prop::collection::vec(proptest::num::f32::ANY, 1..200),
         ) {
-            let start = Vector::from_fn(|i, _| {
-                let (lo, hi) = (bounds.lower()[i], bounds.upper()[i]);
-                (lo + frac[i] * (hi - lo)).clamp(lo, hi)
-            });
             let (min_variance, max_variance) = (limits.0, limits.0 + limits.1);
             let cfg = CemConfig {
                 weighting,
@@ -925,7 +920,7 @@ mod tests {
             };
             let mut s = DiagonalCem::<4, 6>::try_new(bounds, start, cfg).unwrap();
             let initial_variances = *s.variances();
-            check_any_costs(&mut s, &bounds, &costs, |s| {
+            check_any_costs(&mut s, &bounds, &costs, 1, |s, _| {
                 if adapt {
                     prop_assert!(s.variances().iter().all(|v| *v >= cfg.min_variance
                         && *v <= cfg.max_variance), "{:?}", s.variances());
@@ -935,30 +930,6 @@ mod tests {
                 prop_assert!(bounds.contains(s.mean()));
                 Ok(())
             })?;
-        }
-
-        /// Checks: `tell` with any f32, with or without a pending candidate, and at any point
-        /// of a batch, never panics and is rejected exactly when there is no candidate or the
-        /// cost is not finite.
-        #[test]
-        fn tell_never_panics(
-            cost in proptest::num::f32::ANY,
-            ask_first in any::<bool>(),
-            warmup in prop::collection::vec(finite_f32(), 0..12),
-        ) {
-            let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-            let mut s = DiagonalCem::<3, 4>::try_new(b, Vector::zeros(), CemConfig::DEFAULT)
-                .unwrap();
-            let mut r = rng(0);
-            for c in warmup {
-                s.ask(&mut r).unwrap();
-                s.tell(c).unwrap();
-            }
-            if ask_first {
-                s.ask(&mut r).unwrap();
-            }
-            let told = s.tell(cost);
-            prop_assert_eq!(told.is_ok(), ask_first && cost.is_finite());
         }
     }
 }

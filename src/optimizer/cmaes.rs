@@ -710,8 +710,8 @@ mod tests {
     use crate::optimizer::{Best, CemConfig, DiagonalCem, Weighting};
     use crate::testing::{
         any_bounds, check_any_costs, check_rejected_calls_change_nothing, check_rejected_configs,
-        check_rejected_starts, check_seeded, check_tell_after, ellipsoid, evaluations_to_target,
-        rng, rotation, tell_inside,
+        check_rejected_starts, check_seeded, ellipsoid, evaluations_to_target, rng, rotation,
+        tell_inside, with_start,
     };
     use proptest::prelude::*;
 
@@ -1182,18 +1182,13 @@ mod tests {
         /// σ stays in (0, max_sigma]; the best cost never increases.
         #[test]
         fn candidates_in_bounds_and_bad_costs_change_nothing(
-            bounds in any_bounds::<4>(1e-3),
-            frac in prop::array::uniform4(0.0f32..=1.0),
+            (bounds, start) in with_start(any_bounds::<4>(1e-3)),
             sigma in 1e-6f32..5.0,
             penalty in prop_oneof![Just(0.0f32), 1e-6f32..1e6],
             eigen_interval in 1u32..4,
             active in any::<bool>(),
             costs in prop::collection::vec(proptest::num::f32::ANY, 1..120),
         ) {
-            let start = Vector::from_fn(|i, _| {
-                let (lo, hi) = (bounds.lower()[i], bounds.upper()[i]);
-                (lo + frac[i] * (hi - lo)).clamp(lo, hi)
-            });
             let cfg = CmaesConfig {
                 initial_sigma: sigma,
                 max_sigma: 5.0,
@@ -1203,32 +1198,10 @@ mod tests {
                 ..CmaesConfig::DEFAULT
             };
             let mut s = Cmaes::<4, 5>::try_new(bounds, start, cfg).unwrap();
-            check_any_costs(&mut s, &bounds, &costs, |s| {
+            check_any_costs(&mut s, &bounds, &costs, 1, |s, _| {
                 prop_assert!(s.sigma() > 0.0 && s.sigma() <= 5.0 || s.status() == Status::Converged);
                 Ok(())
             })?;
-        }
-
-        /// Checks: `tell` with any f32, with or without a pending candidate, at any point of
-        /// a generation, never panics and is rejected exactly when there is no candidate or
-        /// the cost is not finite.
-        #[test]
-        fn tell_never_panics(
-            cost in proptest::num::f32::ANY,
-            ask_first in any::<bool>(),
-            active in any::<bool>(),
-            warmup in prop::collection::vec(
-                prop_oneof![proptest::num::f32::NORMAL, Just(f32::MAX), Just(-f32::MAX)],
-                0..20,
-            ),
-        ) {
-            let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-            let cfg = CmaesConfig {
-                active,
-                ..CmaesConfig::DEFAULT
-            };
-            let mut s = Cmaes::<3, 4>::try_new(b, Vector::zeros(), cfg).unwrap();
-            check_tell_after(&mut s, &warmup, ask_first, cost)?;
         }
     }
 }

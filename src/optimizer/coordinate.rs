@@ -438,8 +438,8 @@ mod tests {
     use super::*;
     use crate::optimizer::Best;
     use crate::testing::{
-        any_bounds, check_call_order, check_rejected_configs, check_rejected_starts, check_seeded,
-        rng,
+        any_bounds, check_any_costs, check_call_order, check_rejected_configs,
+        check_rejected_starts, check_seeded, rng, with_start,
     };
     use proptest::prelude::*;
 
@@ -641,53 +641,18 @@ mod tests {
         /// error that leaves the whole state unchanged, and the best cost never increases.
         #[test]
         fn candidates_in_bounds_and_bad_costs_change_nothing(
-            bounds in any_bounds::<4>(1e-3),
-            frac in prop::array::uniform4(0.0f32..=1.0),
+            (bounds, start) in with_start(any_bounds::<4>(1e-3)),
             step in 1e-3f32..1e3,
             contraction in 0.05f32..0.95,
             expansion in 1.05f32..4.0,
             costs in prop::collection::vec(proptest::num::f32::ANY, 1..300),
         ) {
-            let start = Vector::from_fn(|i, _| {
-                let (lo, hi) = (bounds.lower()[i], bounds.upper()[i]);
-                (lo + frac[i] * (hi - lo)).clamp(lo, hi)
-            });
             let cfg = CoordinateConfig {
                 initial_step: step, contraction, expansion, tolerance: 1e-4,
                 ..CoordinateConfig::DEFAULT
             };
             let mut s = CoordinateSearch::try_new(bounds, start, cfg).unwrap();
-            let mut r = rng(1);
-            let mut best = f32::INFINITY;
-            for cost in costs {
-                let Ok(theta) = s.ask(&mut r) else { break };
-                prop_assert!(bounds.contains(&theta), "{theta:?} outside {bounds:?}");
-                let before = s;
-                let told = s.tell(cost);
-                if cost.is_finite() {
-                    prop_assert!(told.is_ok());
-                } else {
-                    prop_assert_eq!(told, Err(Error::NonFinite("cost")));
-                    prop_assert_eq!(s, before);
-                }
-                let now = s.best().map_or(f32::INFINITY, |b| b.cost);
-                prop_assert!(now <= best);
-                best = now;
-            }
-        }
-
-        /// Checks: `tell` with any f32, with or without a pending candidate, never panics and
-        /// is rejected exactly when there is no candidate or the cost is not finite.
-        #[test]
-        fn tell_never_panics(cost in proptest::num::f32::ANY, ask_first in any::<bool>()) {
-            let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-            let mut s = CoordinateSearch::try_new(b, Vector::zeros(), CoordinateConfig::DEFAULT)
-                .unwrap();
-            if ask_first {
-                s.ask(&mut rng(0)).unwrap();
-            }
-            let told = s.tell(cost);
-            prop_assert_eq!(told.is_ok(), ask_first && cost.is_finite());
+            check_any_costs(&mut s, &bounds, &costs, 1, |_, _| Ok(()))?;
         }
     }
 }

@@ -1074,8 +1074,8 @@ mod tests {
     use crate::optimizer::{Best, Cmaes, CmaesConfig};
     use crate::testing::{
         any_wide_bounds, check_any_costs, check_call_order, check_rejected_calls_change_nothing,
-        check_rejected_configs, check_rejected_starts, check_seeded, check_tell_after, ellipsoid,
-        evaluations_to_target, rng, rotation, tell_inside,
+        check_rejected_configs, check_rejected_starts, check_seeded, ellipsoid,
+        evaluations_to_target, rng, rotation, tell_inside, with_start,
     };
     use proptest::prelude::*;
     use rand_xoshiro::Xoshiro128PlusPlus;
@@ -1772,16 +1772,11 @@ mod tests {
         /// 1e-3; the best cost never increases.
         #[test]
         fn candidates_in_bounds_and_bad_costs_change_nothing(
-            bounds in any_wide_bounds::<4>(),
-            frac in prop::array::uniform4(0.0f32..=1.0),
+            (bounds, start) in with_start(any_wide_bounds::<4>()),
             sigma in 1e-6f32..1.0,
             lambda in 0.05f32..0.95,
             costs in prop::collection::vec(any_cost(), 1..150),
         ) {
-            let start = Vector::from_fn(|i, _| {
-                let (lo, hi) = (bounds.lower()[i], bounds.upper()[i]);
-                (lo + frac[i] * (hi - lo)).clamp(lo, hi)
-            });
             let cfg = RockstarConfig {
                 initial_sigma: sigma,
                 lambda,
@@ -1789,7 +1784,7 @@ mod tests {
             };
             let mut s = Rockstar::<4, 6>::try_new(bounds, start, cfg).unwrap();
             // Inside the box implies finite: `Bounds` are finite.
-            check_any_costs(&mut s, &bounds, &costs, |s| {
+            check_any_costs(&mut s, &bounds, &costs, 1, |s, _| {
                 let star = s.theta_star();
                 prop_assert!(star.iter().all(|v| v.is_finite()) && bounds.contains(&star));
                 prop_assert!(s.sigma() > 0.0 && s.sigma() <= 1.0);
@@ -1797,28 +1792,6 @@ mod tests {
                 prop_assert!((det - 1.0).abs() < 1e-3 && err < 1e-3, "{} {}", det, err);
                 Ok(())
             })?;
-        }
-
-        /// Checks: `tell` with any f32, with or without a pending candidate, after any
-        /// number of finite (possibly extreme) costs, never panics and is rejected exactly
-        /// when there is no candidate or the cost is not finite.
-        #[test]
-        fn tell_never_panics(
-            cost in any_cost(),
-            ask_first in any::<bool>(),
-            warmup in prop::collection::vec(
-                prop_oneof![
-                    proptest::num::f32::NORMAL | proptest::num::f32::SUBNORMAL,
-                    Just(f32::MAX),
-                    Just(-f32::MAX),
-                    Just(0.0f32),
-                ],
-                0..40,
-            ),
-        ) {
-            let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-            let mut s = Rockstar::<3, 5>::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT).unwrap();
-            check_tell_after(&mut s, &warmup, ask_first, cost)?;
         }
     }
 }

@@ -822,7 +822,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
 mod tests {
     use super::*;
     use crate::optimizer::Status;
-    use crate::testing::{any_bounds, check_rejected_configs, rng};
+    use crate::testing::{any_bounds, check_any_costs, check_rejected_configs, rng};
     use proptest::prelude::*;
 
     fn sracos<const N: usize, const K: usize, const M: usize>(
@@ -1272,20 +1272,11 @@ mod tests {
         ) {
             let config = SracosConfig { replacement, ..SracosConfig::DEFAULT };
             let mut s: Sracos<3, 2, 4> = Sracos::try_new(bounds, config).unwrap();
-            let mut r = rng(seed);
             let mut told = Vec::new();
-            for cost in costs {
-                let Ok(theta) = s.ask(&mut r) else { break };
-                prop_assert!(bounds.contains(&theta), "{theta:?} outside {bounds:?}");
-                let before = s;
-                let result = s.tell(cost);
-                if !cost.is_finite() {
-                    prop_assert_eq!(result, Err(Error::NonFinite("cost")));
-                    prop_assert_eq!(s, before);
-                    continue;
+            check_any_costs(&mut s, &bounds, &costs, seed, |s, cost| {
+                if cost.is_finite() {
+                    told.push(cost);
                 }
-                prop_assert!(result.is_ok());
-                told.push(cost);
                 let mut sorted = told.clone();
                 sorted.sort_by(f32::total_cmp);
                 let k = sorted.len().min(2);
@@ -1294,8 +1285,9 @@ mod tests {
                     let m = sorted.len().min(6);
                     prop_assert_eq!(sorted_costs(s.negatives()), &sorted[k..m]);
                 }
-                prop_assert_eq!(s.best().map(|b| b.cost), Some(sorted[0]));
-            }
+                prop_assert_eq!(s.best().map(|b| b.cost), sorted.first().copied());
+                Ok(())
+            })?;
         }
 
         /// Checks the same for RACOS, with the positive set checked after each batch.
@@ -1306,19 +1298,11 @@ mod tests {
             costs in prop::collection::vec(proptest::num::f32::ANY, 1..200),
         ) {
             let mut s: Racos<3, 2, 4> = Racos::try_new(bounds, RacosConfig::DEFAULT).unwrap();
-            let mut r = rng(seed);
             let mut told = Vec::new();
-            for cost in costs {
-                let Ok(theta) = s.ask(&mut r) else { break };
-                prop_assert!(bounds.contains(&theta));
-                let before = s;
-                let result = s.tell(cost);
-                if !cost.is_finite() {
-                    prop_assert_eq!(result, Err(Error::NonFinite("cost")));
-                    prop_assert_eq!(s, before);
-                    continue;
+            check_any_costs(&mut s, &bounds, &costs, seed, |s, cost| {
+                if cost.is_finite() {
+                    told.push(cost);
                 }
-                told.push(cost);
                 if s.batch_len == 0 {
                     let mut sorted = told.clone();
                     sorted.sort_by(f32::total_cmp);
@@ -1326,7 +1310,8 @@ mod tests {
                     prop_assert_eq!(sorted_costs(s.positives()), &sorted[..k]);
                     prop_assert_eq!(sorted_costs(s.negatives()), &sorted[k..sorted.len().min(6)]);
                 }
-            }
+                Ok(())
+            })?;
         }
 
         /// Checks, with value suppression on (small thresholds so it triggers): candidates
@@ -1345,36 +1330,13 @@ mod tests {
                 ..SracosConfig::DEFAULT
             };
             let mut s: Sracos<3, 2, 4> = sracos(config);
-            let mut r = rng(seed);
-            for cost in costs {
-                let Ok(theta) = s.ask(&mut r) else { break };
-                prop_assert!(s.bounds().contains(&theta));
-                let before = s;
-                let result = s.tell(cost);
-                prop_assert_eq!(result.is_ok(), cost.is_finite());
-                if result.is_err() {
-                    prop_assert_eq!(s, before);
-                }
+            let bounds = *s.bounds();
+            check_any_costs(&mut s, &bounds, &costs, seed, |s, _| {
                 prop_assert!(s.positives().windows(2).all(|w| w[0].cost <= w[1].cost)
                     || s.is_resampling());
                 prop_assert!(s.positives().iter().all(|p| p.cost.is_finite()));
-            }
-        }
-
-        /// Checks: `tell` with any f32, with or without a pending candidate, never panics
-        /// and is rejected exactly when there is no candidate or the cost is not finite.
-        #[test]
-        fn tell_never_panics(cost in proptest::num::f32::ANY, ask_first in any::<bool>()) {
-            let mut s = sracos::<3, 2, 10>(SracosConfig::DEFAULT);
-            let mut q: Racos<3> =
-                Racos::try_new(Bounds::uniform(-1.0, 1.0).unwrap(), RacosConfig::DEFAULT)
-                    .unwrap();
-            if ask_first {
-                s.ask(&mut rng(0)).unwrap();
-                q.ask(&mut rng(0)).unwrap();
-            }
-            prop_assert_eq!(s.tell(cost).is_ok(), ask_first && cost.is_finite());
-            prop_assert_eq!(q.tell(cost).is_ok(), ask_first && cost.is_finite());
+                Ok(())
+            })?;
         }
     }
 }
