@@ -649,6 +649,17 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
                 widenings += 1;
             }
         }
+        let mut cheapest = self.near_where(|w: &Vector<N>| (w - centre).norm_squared() < bound);
+        if self.near_len < need {
+            // Distances beyond f32 (a degenerate shape): regress on everything remembered.
+            cheapest = self.near_where(|_| true);
+        }
+        cheapest.map(|(i, _)| i)
+    }
+
+    /// Makes the near set the remembered rollouts whose whitened sample passes `inside`;
+    /// returns the cheapest of them (index and cost).
+    fn near_where(&mut self, inside: impl Fn(&Vector<N>) -> bool) -> Option<(usize, f32)> {
         self.near_len = 0;
         let mut cheapest: Option<(usize, f32)> = None;
         for (i, (w, &c)) in self
@@ -658,7 +669,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             .take(self.len)
             .enumerate()
         {
-            if (w - centre).norm_squared() < bound
+            if inside(w)
                 && let Some(slot) = self.near.get_mut(self.near_len)
             {
                 *slot = i as u16;
@@ -668,25 +679,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
                 }
             }
         }
-        if self.near_len < need {
-            // Distances beyond f32 (a degenerate shape): regress on everything remembered.
-            self.near_len = 0;
-            cheapest = None;
-            for (i, (slot, &c)) in self
-                .near
-                .iter_mut()
-                .zip(self.costs.iter())
-                .take(self.len)
-                .enumerate()
-            {
-                *slot = i as u16;
-                self.near_len += 1;
-                if cheapest.is_none_or(|(_, best)| c < best) {
-                    cheapest = Some((i, c));
-                }
-            }
-        }
-        cheapest.map(|(i, _)| i)
+        cheapest
     }
 
     /// r_min and C − r_min (as halves) of `set`.
@@ -1078,7 +1071,6 @@ mod tests {
         evaluations_to_target, rng, rotation, tell_inside, with_start,
     };
     use proptest::prelude::*;
-    use rand_xoshiro::Xoshiro128PlusPlus;
 
     type M64<const D: usize> = nalgebra::SMatrix<f64, D, D>;
 
@@ -1087,6 +1079,17 @@ mod tests {
             max_evaluations,
             ..RockstarConfig::DEFAULT
         }
+    }
+
+    /// A search of [−1, 1]ᴺ starting at θ = 0 with `cfg`, and its box.
+    fn from_origin<const N: usize, const M: usize>(
+        cfg: RockstarConfig,
+    ) -> (Bounds<N>, Rockstar<N, M>) {
+        let bounds = Bounds::uniform(-1.0, 1.0).unwrap();
+        (
+            bounds,
+            Rockstar::try_new(bounds, Vector::zeros(), cfg).unwrap(),
+        )
     }
 
     fn sphere<const D: usize>(t: &Vector<D>) -> f32 {
@@ -1261,40 +1264,22 @@ mod tests {
     #[test]
     fn fewer_evaluations_than_cmaes_on_the_sphere() {
         let bounds = Bounds::<10>::uniform(-1.0, 1.0).unwrap();
-        let after = |opt: &mut dyn FnMut(&mut Xoshiro128PlusPlus) -> f32, seed| {
-            let mut r = rng(seed);
-            let mut last = f32::INFINITY;
-            for _ in 0..200 {
-                last = opt(&mut r);
-            }
-            last
-        };
+        // The best cost after 200 evaluations of the sphere.
+        fn after<O: Optimizer<10>>(mut opt: O, seed: u64) -> f32 {
+            let bounds = *opt.bounds();
+            tell_inside(&mut opt, &bounds, &mut rng(seed), sphere, Some(200));
+            opt.best().unwrap().cost
+        }
         let (mut wins, mut log_ratio) = (0, 0.0f64);
         for seed in 0..8 {
-            let mut rock =
-                Rockstar::<10, 50>::try_new(bounds, Vector::zeros(), config(200)).unwrap();
-            let ours = after(
-                &mut |r| {
-                    let t = rock.ask(r).unwrap();
-                    rock.tell(sphere(&t)).unwrap();
-                    rock.best().unwrap().cost
-                },
-                seed,
-            );
+            let rock = Rockstar::<10, 50>::try_new(bounds, Vector::zeros(), config(200)).unwrap();
             let cfg = CmaesConfig {
                 initial_sigma: 0.1,
                 max_evaluations: 200,
                 ..CmaesConfig::DEFAULT
             };
-            let mut cma = Cmaes::<10, 10>::try_new(bounds, Vector::zeros(), cfg).unwrap();
-            let theirs = after(
-                &mut |r| {
-                    let t = cma.ask(r).unwrap();
-                    cma.tell(sphere(&t)).unwrap();
-                    cma.best().unwrap().cost
-                },
-                seed,
-            );
+            let cma = Cmaes::<10, 10>::try_new(bounds, Vector::zeros(), cfg).unwrap();
+            let (ours, theirs) = (after(rock, seed), after(cma, seed));
             wins += usize::from(ours < theirs);
             log_ratio += f64::from(ours / theirs).ln();
         }
@@ -1351,12 +1336,11 @@ mod tests {
     /// (within the limits), σ is untouched by the initial samples.
     #[test]
     fn sigma_follows_the_paper() {
-        let bounds = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
         let cfg = RockstarConfig {
             initial_samples: 3,
             ..config(300)
         };
-        let mut rock = Rockstar::<4, 20>::try_new(bounds, Vector::zeros(), cfg).unwrap();
+        let (_, mut rock) = from_origin::<4, 20>(cfg);
         let k = rock.constants;
         let mut r = rng(5);
         let mut previous: Option<f32> = None;
@@ -1451,12 +1435,11 @@ mod tests {
     /// det(A Aᵀ) = 1 and A A⁻¹ = I to 1e-4 in f64, while Σ_u itself has moved far from I.
     #[test]
     fn determinant_is_kept() {
-        let bounds = Bounds::<10>::uniform(-1.0, 1.0).unwrap();
         let cfg = RockstarConfig {
             tolerance: 0.0,
             ..config(4000)
         };
-        let mut rock = Rockstar::<10, 30>::try_new(bounds, Vector::zeros(), cfg).unwrap();
+        let (_, mut rock) = from_origin::<10, 30>(cfg);
         let f = ellipsoid(1e3);
         let mut r = rng(4);
         while let Ok(t) = rock.ask(&mut r) {
@@ -1569,8 +1552,7 @@ mod tests {
     /// ordinary costs still drive θ* towards the sphere's minimum.
     #[test]
     fn extreme_costs_keep_the_state_finite() {
-        let bounds = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
-        let mut rock = Rockstar::<4, 16>::try_new(bounds, Vector::zeros(), config(1500)).unwrap();
+        let (bounds, mut rock) = from_origin::<4, 16>(config(1500));
         let mut r = rng(6);
         let wild = [
             f32::MAX,
@@ -1603,8 +1585,7 @@ mod tests {
     /// in the box and still minimises the sphere below 1e-6.
     #[test]
     fn recovers_from_a_non_finite_factor() {
-        let bounds = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
-        let mut rock = Rockstar::<4, 16>::try_new(bounds, Vector::zeros(), config(2000)).unwrap();
+        let (bounds, mut rock) = from_origin::<4, 16>(config(2000));
         let mut r = rng(9);
         tell_inside(&mut rock, &bounds, &mut r, sphere, Some(40));
         rock.factor[(1, 2)] = f32::NAN;
@@ -1626,8 +1607,7 @@ mod tests {
     /// (A w is finite), and the sphere is still minimised.
     #[test]
     fn recovers_from_a_singular_shape() {
-        let bounds = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
-        let mut rock = Rockstar::<4, 16>::try_new(bounds, Vector::zeros(), config(2000)).unwrap();
+        let (bounds, mut rock) = from_origin::<4, 16>(config(2000));
         let mut r = rng(10);
         tell_inside(&mut rock, &bounds, &mut r, sphere, Some(40));
         rock.factor.column_mut(0).fill(0.0);
@@ -1656,8 +1636,7 @@ mod tests {
     /// before and after the first update; a repeated `ask` returns the pending candidate.
     #[test]
     fn rejected_calls_change_nothing() {
-        let bounds = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-        let mut rock = Rockstar::<3, 6>::try_new(bounds, Vector::zeros(), config(100)).unwrap();
+        let (_, mut rock) = from_origin::<3, 6>(config(100));
         check_rejected_calls_change_nothing(&mut rock, 10);
         assert_eq!((rock.evaluations(), rock.updates()), (10, 9));
     }
@@ -1703,8 +1682,7 @@ mod tests {
     /// Checks the shared call-order contract (tell without ask, repeated ask, budget stop).
     #[test]
     fn call_order() {
-        let bounds = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-        let mut rock = Rockstar::<3, 6>::try_new(bounds, Vector::zeros(), config(3)).unwrap();
+        let (_, mut rock) = from_origin::<3, 6>(config(3));
         check_call_order(&mut rock);
     }
 
