@@ -37,7 +37,7 @@ pub use bounds::Bounds;
 pub use error::Error;
 pub use optimizer::{
     AnyOptimizer, Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Rockstar,
+    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, Replacement, Rockstar,
     RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Weighting,
 };
 pub use vector::Vector;
@@ -83,7 +83,6 @@ const _: () = {
     assert_format::<Replacement>();
     assert_format::<Suppression>();
     assert_format::<SracosConfig>();
-    assert_format::<RacosConfig>();
     assert_format::<Sracos<3>>();
     assert_format::<Racos<3, 1, 3>>();
     assert_format::<RockstarConfig>();

@@ -52,7 +52,9 @@ pub use cmaes::{Cmaes, CmaesConfig};
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
 pub use crs::{ControlledRandomSearch, CrsConfig};
 pub use rockstar::{Rockstar, RockstarConfig};
-pub use sracos::{Racos, RacosConfig, Replacement, Sracos, SracosConfig, Suppression};
+#[allow(deprecated)]
+pub use sracos::RacosConfig;
+pub use sracos::{Racos, Replacement, Sracos, SracosConfig, Suppression};
 pub use two_phase::TwoPhase;
 
 // The shared vocabulary, also reachable from here (where it lived before 0.2.0).

@@ -382,8 +382,8 @@ mod tests {
     use super::*;
     use crate::optimizer::{
         AnyOptimizer, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-        CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Rockstar,
-        RockstarConfig, Sracos, SracosConfig, Suppression, TwoPhase,
+        CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, Rockstar, RockstarConfig,
+        Sracos, SracosConfig, Suppression, TwoPhase,
     };
     use crate::random::unit_f32;
     use crate::testing::rng;
@@ -510,7 +510,7 @@ mod tests {
         check_resumes_bit_identically(s, 80, &CUTS);
         let s = Sracos::<4>::try_new(bounds(), SracosConfig::DEFAULT).unwrap();
         check_resumes_bit_identically(s, 60, &CUTS);
-        let s = Racos::<4, 2, 34>::try_new(bounds(), RacosConfig::DEFAULT).unwrap();
+        let s = Racos::<4, 2, 34>::try_new(bounds(), SracosConfig::DEFAULT).unwrap();
         check_resumes_bit_identically(s, 100, &CUTS);
     }
 
@@ -691,7 +691,7 @@ mod tests {
         let results = [
             forge(Sracos::<3>::try_new(b, SracosConfig::DEFAULT).unwrap(), 200),
             forge(
-                Racos::<3, 2, 5>::try_new(b, RacosConfig::DEFAULT).unwrap(),
+                Racos::<3, 2, 5>::try_new(b, SracosConfig::DEFAULT).unwrap(),
                 200,
             ),
             forge(

@@ -16,9 +16,7 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::sracos::zoopt_set_sizes;
-use ctrl_adapt::optimizer::{
-    Bounds, Optimizer, Racos, RacosConfig, Sracos, SracosConfig, Status, Vector,
-};
+use ctrl_adapt::optimizer::{Bounds, Optimizer, Racos, Sracos, SracosConfig, Status, Vector};
 use host_tests::functions::{ackley, sphere};
 use host_tests::{random_search, run};
 use rand_core::SeedableRng;
@@ -37,9 +35,9 @@ fn sracos<const N: usize, const K: usize, const M: usize>() -> Sracos<N, K, M> {
 }
 
 fn racos<const N: usize, const K: usize, const M: usize>() -> Racos<N, K, M> {
-    let config = RacosConfig {
+    let config = SracosConfig {
         max_evaluations: 20 * N as u32,
-        ..RacosConfig::DEFAULT
+        ..SracosConfig::DEFAULT
     };
     Racos::try_new(Bounds::uniform(-1.0, 1.0).expect("valid box"), config).expect("valid")
 }

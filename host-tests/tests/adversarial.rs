@@ -7,9 +7,8 @@
 
 use ctrl_adapt::optimizer::{
     Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos, RacosConfig, Replacement,
-    Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector,
-    Weighting,
+    CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos, Replacement, Rockstar,
+    RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
 };
 use host_tests::adversarial::{
     DriverRng, Tally, cap, count, drive, drive_adapter, field, point_in,
@@ -133,7 +132,7 @@ fn racos() {
             let s = sracos_config(rng, limit);
             Racos::<N>::try_new(
                 bounds,
-                RacosConfig {
+                SracosConfig {
                     exploration_rate: s.exploration_rate,
                     uncertain_bits: s.uncertain_bits,
                     max_evaluations: limit,

@@ -7,9 +7,7 @@
 //! 200, (2, 20) for 2000.
 
 use ctrl_adapt::optimizer::sracos::zoopt_set_sizes;
-use ctrl_adapt::optimizer::{
-    Bounds, Racos, RacosConfig, Sracos, SracosConfig, Suppression, Vector, unit_f32,
-};
+use ctrl_adapt::optimizer::{Bounds, Racos, Sracos, SracosConfig, Suppression, Vector, unit_f32};
 use host_tests::functions::{ackley, sphere};
 use host_tests::{random_search, run};
 use rand_core::SeedableRng;
@@ -38,9 +36,9 @@ fn compare<const N: usize, const K: usize, const M: usize>(f: fn(&Vector<N>) -> 
         assert_eq!(r.costs.len(), budget as usize);
         s.push(r.best_cost());
 
-        let config = RacosConfig {
+        let config = SracosConfig {
             max_evaluations: budget,
-            ..RacosConfig::DEFAULT
+            ..SracosConfig::DEFAULT
         };
         let mut opt: Racos<N, K, M> = Racos::try_new(bounds, config).unwrap();
         let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);

@@ -166,8 +166,8 @@ any_optimizer!(
 mod tests {
     use super::*;
     use crate::optimizer::{
-        CemConfig, CmaesConfig, CoordinateConfig, CrsConfig, Racos, RacosConfig, RockstarConfig,
-        SracosConfig, Status,
+        CemConfig, CmaesConfig, CoordinateConfig, CrsConfig, Racos, RockstarConfig, SracosConfig,
+        Status,
     };
     use crate::testing::check_tell_after;
     use crate::{Bounds, Error, Vector};
@@ -228,7 +228,7 @@ mod tests {
                 check_tell_after(&mut s, &warmup, ask_first, cost)?;
             }
             let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-            let mut racos: Racos<3> = Racos::try_new(b, RacosConfig::DEFAULT).unwrap();
+            let mut racos: Racos<3> = Racos::try_new(b, SracosConfig::DEFAULT).unwrap();
             check_tell_after(&mut racos, &warmup, ask_first, cost)?;
         }
     }

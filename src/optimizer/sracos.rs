@@ -186,21 +186,6 @@ impl Suppression {
     }
 }
 
-/// Checks the fields [`SracosConfig`] and [`RacosConfig`] share.
-fn validate_common(
-    exploration_rate: f32,
-    uncertain_bits: Option<u8>,
-    max_evaluations: u32,
-) -> Result<(), Error> {
-    require((0.0..=1.0).contains(&exploration_rate), "exploration_rate")?;
-    if let Some(ub) = uncertain_bits
-        && (ub == 0 || usize::from(ub) > MAX_UNCERTAIN_BITS)
-    {
-        return Err(Error::InvalidParameter("uncertain_bits"));
-    }
-    check_stopping(None, max_evaluations)
-}
-
 /// The number of uncertain coordinates for dimension `n`, or an error if the configured one
 /// exceeds `n`.
 fn resolve_uncertain_bits(configured: Option<u8>, n: usize) -> Result<usize, Error> {
@@ -211,7 +196,10 @@ fn resolve_uncertain_bits(configured: Option<u8>, n: usize) -> Result<usize, Err
     }
 }
 
-/// Parameters of [`Sracos`]; checked by [`SracosConfig::validate`] and the constructor.
+/// Parameters of [`Sracos`] and [`Racos`]; checked by [`SracosConfig::validate`] and the
+/// constructors. RACOS uses the exploration rate, the uncertain bits and the budget; it has
+/// no replacement strategy nor value suppression and refuses a configuration that asks for
+/// either (`replacement` other than [`Replacement::Worst`], or a `suppression`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -242,11 +230,16 @@ impl SracosConfig {
 
     /// `Ok` when every parameter is in its range, else the first offending field.
     pub fn validate(&self) -> Result<(), Error> {
-        validate_common(
-            self.exploration_rate,
-            self.uncertain_bits,
-            self.max_evaluations,
+        require(
+            (0.0..=1.0).contains(&self.exploration_rate),
+            "exploration_rate",
         )?;
+        require(
+            self.uncertain_bits
+                .is_none_or(|ub| ub != 0 && usize::from(ub) <= MAX_UNCERTAIN_BITS),
+            "uncertain_bits",
+        )?;
+        check_stopping(None, self.max_evaluations)?;
         match self.suppression {
             Some(s) => s.validate(),
             None => Ok(()),
@@ -256,61 +249,34 @@ impl SracosConfig {
 
 default_is_const!(SracosConfig);
 
-/// Parameters of [`Racos`]; checked by [`RacosConfig::validate`] and the constructor.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct RacosConfig {
-    /// 1 − λ ∈ [0, 1]: the probability of a uniform candidate from the whole box.
-    pub exploration_rate: f32,
-    /// As [`SracosConfig::uncertain_bits`].
-    pub uncertain_bits: Option<u8>,
-    /// Evaluations (episodes) allowed, ≥ 1, the r initial samples included.
-    pub max_evaluations: u32,
-}
-
-impl RacosConfig {
-    /// ZOOpt's defaults: exploration 0.01, automatic uncertain bits, no budget limit.
-    pub const DEFAULT: Self = Self {
-        exploration_rate: 0.01,
-        uncertain_bits: None,
-        max_evaluations: u32::MAX,
-    };
-
-    /// `Ok` when every parameter is in its range, else the first offending field.
-    pub fn validate(&self) -> Result<(), Error> {
-        validate_common(
-            self.exploration_rate,
-            self.uncertain_bits,
-            self.max_evaluations,
-        )
-    }
-}
-
-default_is_const!(RacosConfig);
+/// The configuration [`Racos`] used to take; RACOS now takes [`SracosConfig`], whose extra
+/// fields it refuses away from their defaults. `RacosConfig::DEFAULT` and struct updates
+/// from it still compile.
+#[deprecated(since = "0.2.0", note = "RACOS takes `SracosConfig`")]
+pub type RacosConfig = SracosConfig;
 
 /// The accessors SRACOS and RACOS share: the configuration, the uncertain coordinates and
 /// the classifier's two sets (documented per algorithm).
 macro_rules! model_accessors {
-    ($config:ty, $positives:literal, $negatives:literal) => {
+    ($positives:literal, $negatives:literal) => {
         /// The configuration in use.
-        pub fn config(&self) -> &$config {
-            &self.config
+        pub fn config(&self) -> &SracosConfig {
+            &self.model.config
         }
 
         /// The number of coordinates each classifier candidate redraws.
         pub fn uncertain_bits(&self) -> usize {
-            self.uncertain_bits
+            self.model.uncertain_bits
         }
 
         #[doc = $positives]
         pub fn positives(&self) -> &[Best<N>] {
-            self.archive.positives()
+            self.model.archive.positives()
         }
 
         #[doc = $negatives]
         pub fn negatives(&self) -> &[Best<N>] {
-            self.archive.negatives()
+            self.model.archive.negatives()
         }
     };
 }
@@ -536,6 +502,47 @@ enum Phase<const N: usize> {
     },
 }
 
+/// The classification model SRACOS and RACOS share: the box, the configuration, the number
+/// of coordinates a classifier candidate redraws, and the positive and negative sets.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+struct Model<const N: usize, const K: usize, const M: usize> {
+    bounds: Bounds<N>,
+    config: SracosConfig,
+    uncertain_bits: usize,
+    archive: Archive<N, K, M>,
+}
+
+impl<const N: usize, const K: usize, const M: usize> Model<N, K, M> {
+    /// An empty model of `bounds` after checking `config`.
+    fn try_new(bounds: Bounds<N>, config: SracosConfig) -> Result<Self, Error> {
+        const {
+            assert!(
+                K >= 1 && M >= 1,
+                "the model needs a positive and a negative sample"
+            )
+        };
+        config.validate()?;
+        Ok(Self {
+            bounds,
+            config,
+            uncertain_bits: resolve_uncertain_bits(config.uncertain_bits, N)?,
+            archive: Archive::EMPTY,
+        })
+    }
+
+    /// A new candidate from the sets (see [`Archive::propose`]).
+    fn propose<R: RngCore + ?Sized>(
+        &self,
+        rng: &mut R,
+        is_new: impl Fn(&Vector<N>, &[usize]) -> bool,
+    ) -> Option<Vector<N>> {
+        let rate = self.config.exploration_rate;
+        (self.archive).propose(&self.bounds, rate, self.uncertain_bits, rng, is_new)
+    }
+}
+
 /// Sequential RACOS: classification-based optimisation that updates its model after every
 /// evaluation, with `K` positive and `M` negative samples stored in place
 /// ((K + M)·(4·N + 4) bytes plus a few hundred; 1.3 kB for N = 18 with the defaults).
@@ -563,10 +570,7 @@ enum Phase<const N: usize> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Sracos<const N: usize, const K: usize = 2, const M: usize = 10> {
-    bounds: Bounds<N>,
-    config: SracosConfig,
-    uncertain_bits: usize,
-    archive: Archive<N, K, M>,
+    model: Model<N, K, M>,
     /// RR's negative slot for the pending candidate, drawn in `ask`.
     slot: usize,
     /// Consecutive samples that did not enter the positive set (value suppression).
@@ -578,18 +582,8 @@ pub struct Sracos<const N: usize, const K: usize = 2, const M: usize = 10> {
 impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
     /// A search over `bounds` with `config`.
     pub fn try_new(bounds: Bounds<N>, config: SracosConfig) -> Result<Self, Error> {
-        const {
-            assert!(
-                K >= 1 && M >= 1,
-                "SRACOS needs a positive and a negative sample"
-            )
-        };
-        config.validate()?;
         Ok(Self {
-            bounds,
-            config,
-            uncertain_bits: resolve_uncertain_bits(config.uncertain_bits, N)?,
-            archive: Archive::EMPTY,
+            model: Model::try_new(bounds, config)?,
             slot: 0,
             non_update: 0,
             phase: Phase::Search,
@@ -598,7 +592,6 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
     }
 
     model_accessors!(
-        SracosConfig,
         "The positive set, best first (fewer than `K` during the first samples). Under value \
          suppression the costs of re-evaluated entries are the suppressed ones, so the first \
          entry is the parameter vector to trust on a noisy plant.",
@@ -613,11 +606,11 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
     /// Value suppression's bookkeeping for a new sample; `Some(slot)` when the positives
     /// must be re-evaluated now, starting with `positive[slot]`.
     fn suppression_due(&mut self, cost: f32) -> Option<usize> {
-        let s = self.config.suppression?;
-        if !self.archive.is_full() {
+        let s = self.model.config.suppression?;
+        if !self.model.archive.is_full() {
             return None;
         }
-        if cost < self.archive.positive[K - 1].cost {
+        if cost < self.model.archive.positive[K - 1].cost {
             self.non_update = 0;
             return None;
         }
@@ -626,13 +619,13 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
             return None;
         }
         self.non_update = 0;
-        self.archive.next_unresampled(0)
+        self.model.archive.next_unresampled(0)
     }
 
     /// One more re-evaluation of `positive[slot]` told: blends once `resample_times` are in,
     /// then moves to the next positive or ends the round.
     fn resample(&mut self, slot: usize, told: u32, sum: f64, held: Best<N>) {
-        let Some(s) = self.config.suppression else {
+        let Some(s) = self.model.config.suppression else {
             return;
         };
         if told < s.resample_times {
@@ -644,15 +637,15 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
             };
             return;
         }
-        if let Some(p) = self.archive.positive.get_mut(slot) {
+        if let Some(p) = self.model.archive.positive.get_mut(slot) {
             // In f64: the mean of finite f32 costs is finite, and the blend is convex.
             let mean = sum / f64::from(told);
             let b = f64::from(s.balance_rate);
             let blended = (1.0 - b) * f64::from(p.cost) + b * mean;
             p.cost = blended.clamp(f64::from(f32::MIN), f64::from(f32::MAX)) as f32;
-            self.archive.resampled[slot] = true;
+            self.model.archive.resampled[slot] = true;
         }
-        match self.archive.next_unresampled(slot + 1) {
+        match self.model.archive.next_unresampled(slot + 1) {
             Some(next) => {
                 self.phase = Phase::Resample {
                     slot: next,
@@ -662,9 +655,10 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
                 }
             }
             None => {
-                self.archive.sort_positives();
-                self.archive
-                    .insert(held, self.config.replacement, self.slot);
+                self.model.archive.sort_positives();
+                self.model
+                    .archive
+                    .insert(held, self.model.config.replacement, self.slot);
                 self.phase = Phase::Search;
             }
         }
@@ -677,19 +671,13 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
             return Ok(pending);
         }
         let theta = match self.phase {
-            Phase::Resample { slot, .. } => self.archive.positive.get(slot).map(|p| p.theta),
+            Phase::Resample { slot, .. } => self.model.archive.positive.get(slot).map(|p| p.theta),
             Phase::Search => {
-                if self.config.replacement == Replacement::Random {
+                if self.model.config.replacement == Replacement::Random {
                     self.slot = below(rng, M);
                 }
-                let archive = &self.archive;
-                archive.propose(
-                    &self.bounds,
-                    self.config.exploration_rate,
-                    self.uncertain_bits,
-                    rng,
-                    |x, first| !archive.contains(x, first),
-                )
+                let model = &self.model;
+                model.propose(rng, |x, first| !model.archive.contains(x, first))
             }
         };
         self.ledger.hand_out_or_stop(theta)
@@ -715,15 +703,16 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
                     }
                 }
                 None => self
+                    .model
                     .archive
-                    .insert(entry, self.config.replacement, self.slot),
+                    .insert(entry, self.model.config.replacement, self.slot),
             },
         }
         self.ledger.settle();
         Ok(())
     }
 
-    ledger_accessors!();
+    ledger_accessors!(model.bounds);
 }
 
 /// Batch-mode RACOS (the paper's Algorithm 1 as ZOOpt runs it): the model is fixed while a
@@ -734,10 +723,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Racos<const N: usize, const K: usize = 2, const M: usize = 10> {
-    bounds: Bounds<N>,
-    config: RacosConfig,
-    uncertain_bits: usize,
-    archive: Archive<N, K, M>,
+    model: Model<N, K, M>,
     /// This batch's evaluated samples, the first `batch_len`.
     #[cfg_attr(feature = "serde", serde(with = "crate::record::array"))]
     batch: [Best<N>; M],
@@ -747,28 +733,18 @@ pub struct Racos<const N: usize, const K: usize = 2, const M: usize = 10> {
 
 impl<const N: usize, const K: usize, const M: usize> Racos<N, K, M> {
     /// A search over `bounds` with `config`.
-    pub fn try_new(bounds: Bounds<N>, config: RacosConfig) -> Result<Self, Error> {
-        const {
-            assert!(
-                K >= 1 && M >= 1,
-                "RACOS needs a positive and a negative sample"
-            )
-        };
-        config.validate()?;
-        let archive = Archive::EMPTY;
+    pub fn try_new(bounds: Bounds<N>, config: SracosConfig) -> Result<Self, Error> {
+        require(config.replacement == Replacement::Worst, "replacement")?;
+        require(config.suppression.is_none(), "suppression")?;
         Ok(Self {
-            bounds,
-            config,
-            uncertain_bits: resolve_uncertain_bits(config.uncertain_bits, N)?,
-            batch: archive.negative,
-            archive,
+            model: Model::try_new(bounds, config)?,
+            batch: Archive::<N, K, M>::EMPTY.negative,
             batch_len: 0,
             ledger: Ledger::new(config.max_evaluations),
         })
     }
 
     model_accessors!(
-        RacosConfig,
         "The positive set of the current batch's model, best first.",
         "The negative set of the current batch's model, unordered."
     );
@@ -781,24 +757,18 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
         }
         // batch_len ≤ M: `get` always succeeds and spares a bounds check (panic path).
         let batch = self.batch.get(..self.batch_len).unwrap_or(&[]);
-        let archive = &self.archive;
-        let theta = archive.propose(
-            &self.bounds,
-            self.config.exploration_rate,
-            self.uncertain_bits,
-            rng,
-            |x, first| {
-                !archive.contains(x, first) && !batch.iter().any(|e| same(&e.theta, x, first))
-            },
-        );
+        let archive = &self.model.archive;
+        let theta = self.model.propose(rng, |x, first| {
+            !archive.contains(x, first) && !batch.iter().any(|e| same(&e.theta, x, first))
+        });
         self.ledger.hand_out_or_stop(theta)
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
         let theta = self.ledger.accept(cost)?;
         let entry = Best { theta, cost };
-        if !self.archive.is_full() {
-            self.archive.insert_stable(entry);
+        if !self.model.archive.is_full() {
+            self.model.archive.insert_stable(entry);
         } else if let Some(slot) = self.batch.get_mut(self.batch_len) {
             *slot = entry;
             self.batch_len += 1;
@@ -806,7 +776,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
                 // Inserting one by one with WR keeps the best K positive and the next best
                 // M negative: ZOOpt's `selection` over stored ∪ batch.
                 for e in self.batch {
-                    self.archive.insert_stable(e);
+                    self.model.archive.insert_stable(e);
                 }
                 self.batch_len = 0;
             }
@@ -815,7 +785,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
         Ok(())
     }
 
-    ledger_accessors!();
+    ledger_accessors!(model.bounds);
 }
 
 #[cfg(test)]
@@ -1034,7 +1004,7 @@ mod tests {
     #[test]
     fn racos_keeps_its_model_for_a_batch() {
         let mut s: Racos<3, 2, 4> =
-            Racos::try_new(Bounds::uniform(-1.0, 1.0).unwrap(), RacosConfig::DEFAULT).unwrap();
+            Racos::try_new(Bounds::uniform(-1.0, 1.0).unwrap(), SracosConfig::DEFAULT).unwrap();
         let mut r = rng(8);
         let mut all = Vec::new();
         for i in 0..6 + 4 * 5 {
@@ -1120,7 +1090,7 @@ mod tests {
     fn a_box_without_new_points_converges() {
         let bounds = Bounds::<1>::try_new([1.0].into(), [1.0 + f32::EPSILON].into()).unwrap();
         let mut s: Sracos<1, 1, 1> = Sracos::try_new(bounds, SracosConfig::DEFAULT).unwrap();
-        let mut q: Racos<1, 1, 1> = Racos::try_new(bounds, RacosConfig::DEFAULT).unwrap();
+        let mut q: Racos<1, 1, 1> = Racos::try_new(bounds, SracosConfig::DEFAULT).unwrap();
         let mut r = rng(10);
         let a = s.ask(&mut r).unwrap();
         s.tell(1.0).unwrap();
@@ -1185,12 +1155,13 @@ mod tests {
             assert_ne!(trace(s, 1), trace(s, 2));
         }
         let q: Racos<4> =
-            Racos::try_new(Bounds::uniform(-1.0, 1.0).unwrap(), RacosConfig::DEFAULT).unwrap();
+            Racos::try_new(Bounds::uniform(-1.0, 1.0).unwrap(), SracosConfig::DEFAULT).unwrap();
         assert_eq!(trace(q, 1), trace(q, 1));
         assert_ne!(trace(q, 1), trace(q, 2));
     }
 
-    /// Checks that each invalid parameter is rejected by name.
+    /// Checks that each invalid parameter is rejected by name, by SRACOS and by RACOS (which
+    /// also refuses a replacement strategy or value suppression).
     #[test]
     fn constructors_name_the_bad_parameter() {
         let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
@@ -1237,11 +1208,17 @@ mod tests {
             }),
             e("balance_rate")
         );
-        let c = RacosConfig {
-            uncertain_bits: Some(4),
-            ..RacosConfig::DEFAULT
-        };
-        assert_eq!(Racos::<3>::try_new(b, c).unwrap_err(), e("uncertain_bits"));
+        // RACOS checks the same fields and refuses the two it has no use for.
+        check_rejected_configs(
+            SracosConfig::DEFAULT,
+            |c| Racos::<3>::try_new(b, c),
+            &[
+                (|c| c.uncertain_bits = Some(4), "uncertain_bits"),
+                (|c| c.exploration_rate = 1.1, "exploration_rate"),
+                (|c| c.replacement = Replacement::Random, "replacement"),
+                (|c| c.suppression = Some(Suppression::ZOOPT), "suppression"),
+            ],
+        );
         assert_eq!(
             Sracos::<3>::try_new(b, SracosConfig::DEFAULT)
                 .unwrap()
@@ -1297,7 +1274,7 @@ mod tests {
             seed in any::<u64>(),
             costs in prop::collection::vec(proptest::num::f32::ANY, 1..200),
         ) {
-            let mut s: Racos<3, 2, 4> = Racos::try_new(bounds, RacosConfig::DEFAULT).unwrap();
+            let mut s: Racos<3, 2, 4> = Racos::try_new(bounds, SracosConfig::DEFAULT).unwrap();
             let mut told = Vec::new();
             check_any_costs(&mut s, &bounds, &costs, seed, |s, cost| {
                 if cost.is_finite() {

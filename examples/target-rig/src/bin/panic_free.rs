@@ -33,7 +33,7 @@ use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
     Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, RacosConfig, Replacement, Rockstar,
+    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, Replacement, Rockstar,
     RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
 };
 use ctrl_adapt_firmware::{exit_failure, exit_success};
@@ -161,7 +161,7 @@ fn other_optimizers(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
         black_box((s.positives(), s.negatives(), s.is_resampling()));
         black_box((s.uncertain_bits(), s.config()));
     }
-    let racos = RacosConfig {
+    let racos = SracosConfig {
         exploration_rate: black_box(0.01),
         uncertain_bits: black_box(None),
         max_evaluations: black_box(300),
