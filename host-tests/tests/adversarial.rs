@@ -133,9 +133,10 @@ fn racos() {
             Racos::<N>::try_new(
                 bounds,
                 SracosConfig {
-                    exploration_rate: s.exploration_rate,
-                    uncertain_bits: s.uncertain_bits,
+                    replacement: Replacement::Worst,
+                    suppression: None,
                     max_evaluations: limit,
+                    ..s
                 },
             )
         }),
