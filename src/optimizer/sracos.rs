@@ -539,7 +539,8 @@ impl<const N: usize, const K: usize, const M: usize> Model<N, K, M> {
         is_new: impl Fn(&Vector<N>, &[usize]) -> bool,
     ) -> Option<Vector<N>> {
         let rate = self.config.exploration_rate;
-        (self.archive).propose(&self.bounds, rate, self.uncertain_bits, rng, is_new)
+        self.archive
+            .propose(&self.bounds, rate, self.uncertain_bits, rng, is_new)
     }
 }
 
