@@ -164,6 +164,8 @@ fn other_optimizers(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
     let racos = SracosConfig {
         exploration_rate: black_box(0.01),
         uncertain_bits: black_box(None),
+        replacement: black_box(Replacement::Worst),
+        suppression: black_box(None),
         max_evaluations: black_box(300),
     };
     let Ok(mut r) = Racos::<N>::try_new(bounds, racos) else {
