@@ -10,14 +10,11 @@
 //!    two ablations of the defaults;
 //! 3. host time per ask+tell pair (the objective excluded) and `size_of` the optimizer.
 //!
-//! Timing method as in `benches/optimizers.rs`: a recorded run's costs are replayed into a
-//! fresh optimizer with the same seed (the search is deterministic given seed and costs), so
-//! only `ask` and `tell` are inside the clock; the median over repetitions is reported.
-
-use std::hint::black_box;
-use std::time::Instant;
+//! Timing method: `experiments::overhead::replay` (a recorded run's costs replayed with the
+//! same seed, only `ask` and `tell` inside the clock; median over repetitions).
 
 use ctrl_adapt::optimizer::{Bounds, CemConfig, DiagonalCem, Optimizer, Vector, Weighting};
+use experiments::overhead::replay;
 use host_tests::arm::{self, ViaPointArm};
 use host_tests::functions::{ackley, sphere};
 use host_tests::run;
@@ -232,38 +229,17 @@ fn bench_overhead<const N: usize, const E: usize>(name: &str) {
         };
         DiagonalCem::<N, 10, E>::try_new(bounds, Vector::zeros(), config).expect("valid config")
     };
-    const SEED: u64 = 1;
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(SEED);
-    let costs = run(
-        &mut make(),
-        &mut rng,
+    let o = replay(
+        make,
+        |t| sphere(t, 0.2),
         20 * N,
-        |t, _| sphere(t, 0.2),
-        |_, _, _| {},
-    )
-    .expect("a clean run")
-    .costs;
-    let replays = MIN_PAIRS_PER_REPETITION.div_ceil(costs.len());
-    let mut per_pair_ns: Vec<f64> = (0..REPETITIONS)
-        .map(|_| {
-            let start = Instant::now();
-            for _ in 0..replays {
-                let mut s = black_box(make());
-                let mut rng = Xoshiro128PlusPlus::seed_from_u64(SEED);
-                for &cost in &costs {
-                    black_box(s.ask(&mut rng).expect("replay stays in step"));
-                    s.tell(black_box(cost)).expect("finite cost");
-                }
-                black_box(&s);
-            }
-            start.elapsed().as_nanos() as f64 / (replays * costs.len()) as f64
-        })
-        .collect();
-    per_pair_ns.sort_by(f64::total_cmp);
+        REPETITIONS,
+        MIN_PAIRS_PER_REPETITION,
+    );
     println!(
         "| {name} | {N} | 10 | {E} | {:.1} | {:.1} | {} |",
-        per_pair_ns[REPETITIONS / 2],
-        per_pair_ns[0],
+        o.median_ns,
+        o.min_ns,
         std::mem::size_of::<DiagonalCem<N, 10, E>>(),
     );
 }

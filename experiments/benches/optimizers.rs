@@ -6,18 +6,14 @@
 //! into fresh optimizers (the search is deterministic given the costs), so only `ask` and
 //! `tell` are inside the clock. The median over repetitions is reported.
 
-use std::hint::black_box;
-use std::time::Instant;
-
 use ctrl_adapt::controller::{Adapter, CorrectedPd, PeriodicPd, StateFeatures};
 use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::optimizer::{
     Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
     DiagonalCem, Optimizer, Sracos, SracosConfig, Vector,
 };
-use host_tests::{functions::sphere, run};
-use rand_core::SeedableRng;
-use rand_xoshiro::Xoshiro128PlusPlus;
+use experiments::overhead::replay;
+use host_tests::functions::sphere;
 
 const REPETITIONS: usize = 31;
 const MIN_PAIRS_PER_REPETITION: usize = 200_000;
@@ -62,41 +58,18 @@ fn cem<const N: usize, const K: usize>() -> DiagonalCem<N, K> {
 /// Times ask+tell of the optimizers `make` builds, replaying the costs of one recorded run
 /// on the sphere centred at 0.3 (same seed each replay, so the same candidates).
 fn bench<const N: usize, O: Optimizer<N>>(name: &str, make: impl Fn() -> O) {
-    let seed = 1;
-    let costs = run(
-        &mut make(),
-        &mut Xoshiro128PlusPlus::seed_from_u64(seed),
+    let o = replay(
+        make,
+        |t| sphere(t, 0.3),
         usize::MAX,
-        |t, _| sphere(t, 0.3),
-        |_, _, _| {},
-    )
-    .expect("a clean run")
-    .costs;
-
-    let replays = MIN_PAIRS_PER_REPETITION.div_ceil(costs.len());
-    let mut per_pair_ns: Vec<f64> = (0..REPETITIONS)
-        .map(|_| {
-            let mut elapsed = std::time::Duration::ZERO;
-            for _ in 0..replays {
-                let mut s = black_box(make());
-                let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
-                let start = Instant::now();
-                for &cost in &costs {
-                    black_box(s.ask(&mut rng).expect("replay stays in step"));
-                    s.tell(black_box(cost)).expect("finite cost");
-                }
-                elapsed += start.elapsed();
-                black_box(&s);
-            }
-            elapsed.as_nanos() as f64 / (replays * costs.len()) as f64
-        })
-        .collect();
-    per_pair_ns.sort_by(f64::total_cmp);
+        REPETITIONS,
+        MIN_PAIRS_PER_REPETITION,
+    );
     println!(
         "| {name} | {N:>4} | {:>8} | {:>10.1} | {:>10.1} | {:>8} |",
-        costs.len(),
-        per_pair_ns[REPETITIONS / 2],
-        per_pair_ns[0],
+        o.evaluations,
+        o.median_ns,
+        o.min_ns,
         std::mem::size_of::<O>(),
     );
 }

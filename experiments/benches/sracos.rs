@@ -12,11 +12,9 @@
 //!   over repetitions.
 //! * `size_of` the optimizer state.
 
-use std::hint::black_box;
-use std::time::Instant;
-
 use ctrl_adapt::optimizer::sracos::zoopt_set_sizes;
 use ctrl_adapt::optimizer::{Bounds, Optimizer, Racos, Sracos, SracosConfig, Status, Vector};
+use experiments::overhead::replay;
 use host_tests::functions::{ackley, sphere};
 use host_tests::{random_search, run};
 use rand_core::SeedableRng;
@@ -69,28 +67,8 @@ fn overhead<const N: usize, O: Optimizer<N>>(
     make: fn() -> O,
     f: fn(&Vector<N>) -> f32,
 ) -> (f64, f64) {
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-    let costs = run(&mut make(), &mut rng, usize::MAX, |t, _| f(t), |_, _, _| {})
-        .expect("a clean run")
-        .costs;
-    let replays = MIN_PAIRS_PER_REPETITION.div_ceil(costs.len());
-    let mut per_pair: Vec<f64> = (0..REPETITIONS)
-        .map(|_| {
-            let start = Instant::now();
-            for _ in 0..replays {
-                let mut o = black_box(make());
-                let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-                for &cost in &costs {
-                    black_box(o.ask(&mut rng).expect("replay stays in step"));
-                    o.tell(black_box(cost)).expect("finite cost");
-                }
-                black_box(&o);
-            }
-            start.elapsed().as_nanos() as f64 / (replays * costs.len()) as f64
-        })
-        .collect();
-    per_pair.sort_by(f64::total_cmp);
-    (per_pair[REPETITIONS / 2], per_pair[0])
+    let o = replay(make, f, usize::MAX, REPETITIONS, MIN_PAIRS_PER_REPETITION);
+    (o.median_ns, o.min_ns)
 }
 
 fn sphere02<const N: usize>(t: &Vector<N>) -> f32 {

@@ -4,5 +4,6 @@
 //! release-only claims (`cargo test --release -p experiments`).
 
 pub mod hopping;
+pub mod overhead;
 pub mod peers;
 pub mod rockstar_arm;
