@@ -266,11 +266,11 @@ pub(crate) fn tell_inside<const N: usize, O: Optimizer<N>>(
 
 /// One case of [`check_rejected_configs`]: a change to the default configuration and the
 /// parameter the error must name.
-pub type Rejection<C> = (fn(&mut C), &'static str);
+pub(crate) type Rejection<C> = (fn(&mut C), &'static str);
 
 /// Checks: `build` refuses each change of `default` with [`Error::InvalidParameter`] naming
 /// the case's parameter.
-pub fn check_rejected_configs<C: Copy, T>(
+pub(crate) fn check_rejected_configs<C: Copy, T>(
     default: C,
     build: impl Fn(C) -> Result<T, Error>,
     cases: &[Rejection<C>],
@@ -289,7 +289,10 @@ pub fn check_rejected_configs<C: Copy, T>(
 
 /// Checks: `build` refuses a start outside the box [−1, 1]² and a non-finite one, each
 /// with the error naming `name`.
-pub fn check_rejected_starts<T>(name: &'static str, build: impl Fn(Vector<2>) -> Result<T, Error>) {
+pub(crate) fn check_rejected_starts<T>(
+    name: &'static str,
+    build: impl Fn(Vector<2>) -> Result<T, Error>,
+) {
     assert_eq!(
         build([2.0, 0.0].into()).err(),
         Some(Error::OutOfBounds(name))
