@@ -55,7 +55,7 @@ pub use rockstar::{Rockstar, RockstarConfig};
 #[allow(deprecated)]
 pub use sracos::RacosConfig;
 pub use sracos::{Racos, Replacement, Sracos, SracosConfig, Suppression};
-pub use two_phase::TwoPhase;
+pub use two_phase::{Phase, TwoPhase};
 
 // The shared vocabulary, also reachable from here (where it lived before 0.2.0).
 pub use crate::bounds::Bounds;

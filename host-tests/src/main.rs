@@ -19,8 +19,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use ctrl_adapt::controller::Mode;
-use ctrl_adapt::optimizer::two_phase::Phase;
-use ctrl_adapt::optimizer::{Optimizer, TwoPhase, Vector};
+use ctrl_adapt::optimizer::{Optimizer, Phase, TwoPhase, Vector};
 use host_tests::auv::AuvConfig;
 use host_tests::plots::{self, Curve, Hops, Track};
 use host_tests::{auv_task, hopper_task};
@@ -159,14 +158,9 @@ fn auv_demo(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
         .best()
         .ok_or("the global phase told nothing")?
         .theta;
-    // The phases scored in different currents: what the robot learned is the local phase's
-    // own best (TwoPhase::best is the best over both phases, here a simulator cost).
-    let learned = adapter
-        .optimizer()
-        .local()
-        .and_then(|l| l.best())
-        .ok_or("the local phase told nothing")?
-        .theta;
+    // After the hand-over, TwoPhase::best is the local phase's best: what the robot measured
+    // (the phases scored in different currents, so their costs are never compared).
+    let learned = adapter.deployed_theta();
     let phase1_real = auv_task::evaluate(phase1, &mut real, &mut rng, true)?;
     let learned_real = auv_task::evaluate(learned, &mut real, &mut rng, true)?;
 

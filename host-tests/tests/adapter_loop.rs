@@ -2,12 +2,12 @@
 //! with an unmodelled constant disturbance: the learned correction must beat the bare PD.
 
 use ctrl_adapt::controller::{
-    Adapter, AdapterConfig, CorrectedPd, LinearPolicy, Mode, Pd, StateFeatures,
+    Adapter, AdapterConfig, CorrectedPd, EpisodeReport, LinearPolicy, Mode, Pd, StateFeatures,
 };
 use ctrl_adapt::cost::QuadraticCost;
 use ctrl_adapt::optimizer::{
     Bounds, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, Optimizer,
-    TwoPhase, Vector,
+    Phase, TwoPhase, Vector,
 };
 use host_tests::double_integrator::DoubleIntegrator;
 use rand_core::SeedableRng;
@@ -47,8 +47,17 @@ fn episode<O: Optimizer<2>>(
     adapter: &mut Adapter<O, Plant, QuadraticCost<1>, 2, 2, 1>,
     rng: &mut Xoshiro128PlusPlus,
 ) -> f32 {
+    episode_in(adapter, rng, DISTURBANCE).cost
+}
+
+/// Runs one episode through the adapter on a plant with `disturbance`; returns its report.
+fn episode_in<O: Optimizer<2>>(
+    adapter: &mut Adapter<O, Plant, QuadraticCost<1>, 2, 2, 1>,
+    rng: &mut Xoshiro128PlusPlus,
+    disturbance: f64,
+) -> EpisodeReport<2> {
     adapter.begin_episode(rng).unwrap();
-    let mut plant = DoubleIntegrator::new(DISTURBANCE, f64::from(DT));
+    let mut plant = DoubleIntegrator::new(disturbance, f64::from(DT));
     for _ in 0..TICKS {
         let error = (SETPOINT - plant.position) as f32;
         let state = Vector::from([error, plant.velocity as f32]);
@@ -57,7 +66,7 @@ fn episode<O: Optimizer<2>>(
     }
     let report = adapter.end_episode().unwrap();
     assert!(!report.failed);
-    report.cost
+    report
 }
 
 fn run<O: Optimizer<2>>(optimizer: O) -> (f32, f32, Vec<f32>) {
@@ -106,4 +115,50 @@ fn two_phase_correction_beats_the_bare_pd() {
     let (bare, deployed, curve) = run(two);
     println!("two-phase: bare {bare:.4}, deployed {deployed:.4}, curve {curve:.3?}");
     assert!(deployed <= 0.35 * bare, "bare {bare}, deployed {deployed}");
+}
+
+/// Checks: a two-phase adapter whose global phase runs in a simulator that differs from the
+/// robot (a push of 0.5 m/s² instead of the robot's 1.5 m/s², so every simulator cost is
+/// lower than any robot cost) deploys the θ that scored best *on the robot*, not the
+/// simulator's best θ: costs from different conditions are never ranked against each other.
+#[test]
+fn two_phase_deploys_what_the_robot_measured() {
+    const SIMULATOR_DISTURBANCE: f64 = -0.5;
+    const GLOBAL: u32 = 30;
+    let crs = ControlledRandomSearch::<2, 10>::try_new(bounds(), CrsConfig::DEFAULT).unwrap();
+    let local = CoordinateConfig {
+        initial_step: 1.0,
+        tolerance: 1e-3,
+        ..CoordinateConfig::DEFAULT
+    };
+    let two = TwoPhase::try_new(crs, GLOBAL, local).unwrap();
+    let shaper = QuadraticCost::try_new(Vector::repeat(1.0)).unwrap();
+    let mut adapter = Adapter::try_new(two, controller(), shaper, CONFIG, Vector::zeros()).unwrap();
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(2012);
+    let mut robot = Vec::new();
+    for _ in 0..CONFIG.learning_episodes {
+        if adapter.optimizer().phase() == Phase::Global {
+            episode_in(&mut adapter, &mut rng, SIMULATOR_DISTURBANCE);
+        } else {
+            robot.push(episode_in(&mut adapter, &mut rng, DISTURBANCE));
+        }
+    }
+    assert_eq!(robot.len(), (CONFIG.learning_episodes - GLOBAL) as usize);
+    let global = adapter.optimizer().global().best().unwrap();
+    let robot_best = robot
+        .iter()
+        .min_by(|a, b| a.cost.total_cmp(&b.cost))
+        .unwrap();
+    // The premise: the simulator's best cost is below anything the robot measured, and the
+    // robot found a better θ than the simulator's.
+    assert!(robot.iter().all(|r| global.cost < r.cost), "{global:?}");
+    assert_ne!(robot_best.theta, global.theta);
+    assert_eq!(adapter.deployed_theta(), robot_best.theta);
+    let deployed = episode_in(&mut adapter, &mut rng, DISTURBANCE);
+    assert_eq!(adapter.mode(), Mode::Deploy);
+    assert_eq!(deployed.theta, robot_best.theta);
+    println!(
+        "simulator best {:.4} at {:?}; robot best {:.4} at {:?}",
+        global.cost, global.theta, robot_best.cost, robot_best.theta
+    );
 }

@@ -155,16 +155,21 @@ impl<G: Optimizer<N>, const N: usize> Optimizer<N> for TwoPhase<G, N> {
         }
     }
 
-    /// The best (θ, cost) told to either phase: it never gets worse, also not at the
-    /// hand-over, where the local phase re-measures the global best (on a noisy plant, or in
-    /// new conditions, possibly at a higher cost). When the phases score in different
-    /// conditions (a simulator, then the robot) and only the robot's costs should count,
-    /// read the local phase's own best: `two.local().and_then(|l| l.best())`.
+    /// Before the hand-over, the global phase's best. After it, the local phase's best: the
+    /// phases score in different conditions (the global phase in a simulator, the local one
+    /// on the robot), and costs measured in different conditions are not comparable, so a
+    /// simulator cost never outranks a robot measurement. After the hand-over and before the
+    /// local phase has told anything, the hand-over point (the global best, with its global
+    /// cost: nothing else is known yet), which is also the local phase's first candidate.
+    ///
+    /// So `best` may get worse at the hand-over (the robot re-measures the global best, in
+    /// new conditions); an [`Adapter`](crate::controller::Adapter) around a `TwoPhase`
+    /// deploys a θ measured on the robot. The global phase's best stays readable through
+    /// [`TwoPhase::global`].
     fn best(&self) -> Option<Best<N>> {
-        let global = self.global.best();
-        match self.local.as_ref().and_then(|l| l.best()) {
-            Some(local) if global.is_none_or(|g| local.cost < g.cost) => Some(local),
-            _ => global,
+        match self.local.as_ref() {
+            Some(local) => local.best().or_else(|| self.global.best()),
+            None => self.global.best(),
         }
     }
 
@@ -196,12 +201,12 @@ mod tests {
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;
 
-    /// Checks: `best` never gets worse at the hand-over. The global phase's best θ is told
-    /// 1.0; the local phase re-measures it first and is told 5.0 (a noisy plant), then worse
-    /// costs: `best` stays the global (θ, 1.0) until the local phase beats it, while
-    /// `local()` reports the local phase's own best.
+    /// Checks: after the hand-over `best` is the local phase's own best, even when the
+    /// global phase's (simulator) cost is lower. The global phase's best θ is told 1.0; the
+    /// local phase re-measures it first and is told 5.0 (other conditions), then worse
+    /// costs: `best` is the local (θ, 5.0), and the global best stays readable.
     #[test]
-    fn best_never_gets_worse_at_the_hand_over() {
+    fn best_after_the_hand_over_is_the_local_phase_best() {
         let bounds = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
         let crs = ControlledRandomSearch::<2, 5>::try_new(bounds, CrsConfig::DEFAULT).unwrap();
         let mut two = TwoPhase::try_new(crs, 5, CoordinateConfig::DEFAULT).unwrap();
@@ -216,17 +221,23 @@ mod tests {
             theta: first.unwrap(),
             cost: 1.0,
         };
+        // Handed over, nothing measured locally yet: the hand-over point.
+        assert_eq!(two.phase(), Phase::Local);
         assert_eq!(two.best(), Some(global));
-        for cost in [5.0, 6.0, 7.0] {
+        let handed = two.ask(&mut rng).unwrap();
+        assert_eq!(handed, global.theta);
+        two.tell(5.0).unwrap();
+        let local = Best {
+            theta: handed,
+            cost: 5.0,
+        };
+        assert_eq!(two.best(), Some(local));
+        for cost in [6.0, 7.0] {
             two.ask(&mut rng).unwrap();
             two.tell(cost).unwrap();
-            assert_eq!(two.phase(), Phase::Local);
-            assert_eq!(two.best(), Some(global));
+            assert_eq!(two.best(), Some(local));
         }
-        assert_eq!(
-            two.local().and_then(|l| l.best()).map(|b| b.cost),
-            Some(5.0)
-        );
+        assert_eq!(two.global().best(), Some(global));
         let t = two.ask(&mut rng).unwrap();
         two.tell(0.5).unwrap();
         assert_eq!(
