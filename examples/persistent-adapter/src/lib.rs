@@ -52,11 +52,12 @@ pub type Learner = Adapter<Sracos<2>, FeedForwardPd, QuadraticCost<1>, 2, 2, 1>;
 /// This device's seed (e.g. from its unique ID); another seed explores other candidates.
 pub const DEVICE_SEED: u32 = 0x2C0F_FEE5;
 
-/// Two slots of four 4 KiB pages each, at the start of the flash range given to the store.
-pub const SLOTS: [Range<u32>; 2] = [0..0x4000, 0x4000..0x8000];
+/// Two slots of two 4 KiB pages each (the least a slot can have), at the start of the flash
+/// range handed to the store.
+pub const SLOTS: [Range<u32>; 2] = [0..0x2000, 0x2000..0x4000];
 
-/// The record buffer: at least the largest record (a `Learner` is about 450 bytes).
-pub const RECORD: usize = 1024;
+/// The record buffer: at least the largest record (a `Learner`'s is 273 bytes).
+pub const RECORD: usize = 512;
 
 /// The item buffer: the size of one chunk written to flash.
 pub const ITEM: usize = 256;
