@@ -19,8 +19,9 @@ use rand_core::{RngCore, SeedableRng};
 /// Every (seed, episode) pair is a distinct `u64`, so every episode of every device gets its
 /// own seed. With `rand_xoshiro`'s generators, whose `seed_from_u64` fills the state from
 /// SplitMix64 started at that `u64`, the episodes of one device share no SplitMix64 output
-/// (their starts differ by less than 2³², far from SplitMix64's increment): their states are
-/// distinct and as independent as SplitMix64 makes any two seeds.
+/// (their starts differ by less than 2³², never by SplitMix64's increment or its negative,
+/// both above 2³²): their states are distinct and as independent as SplitMix64 makes any
+/// two seeds.
 ///
 /// [`learning_episodes`]: crate::controller::Adapter::learning_episodes
 /// [`evaluations`]: crate::Optimizer::evaluations

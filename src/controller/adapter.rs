@@ -3,6 +3,8 @@
 //!
 //! ```text
 //! begin_episode(rng)  → θ (optimizer.ask, or the best θ when deploying)
+//!   or begin_seeded_episode::<R>(seed): the RNG derived from a device seed and the
+//!   learning episodes told, so that a checkpoint of the adapter needs no RNG state
 //! control(state, obs) → action, every tick (and obs → shaper)
 //! end_episode()       → cost = shaper.cost() → optimizer.tell(cost)
 //! ```
