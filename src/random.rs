@@ -1,7 +1,46 @@
 //! Uniform and normal `f32` draws from the caller's [`RngCore`], without `f64` and without
-//! trigonometry (both are software routines on a Cortex-M4F).
+//! trigonometry (both are software routines on a Cortex-M4F), and [`episode_rng`], the RNG
+//! of one learning episode derived from a device seed, which leaves a checkpoint no RNG
+//! state to save.
 
-use rand_core::RngCore;
+use rand_core::{RngCore, SeedableRng};
+
+/// The RNG of learning episode `episode` on a device seeded with `seed`:
+/// `R::seed_from_u64(seed · 2³² + episode)`.
+///
+/// An optimizer draws only inside `ask`, so an episode's candidate depends on the
+/// optimizer's state and on this RNG alone. Derived afresh for every episode from a counter
+/// the checkpoint holds anyway (the adapter's [`learning_episodes`] or the optimizer's
+/// [`evaluations`]), the RNG needs no saving: a run resumed from a checkpoint draws what the
+/// uninterrupted run draws, bit for bit, and an episode a power cut interrupted is run
+/// again with the same candidate. [`Adapter::begin_seeded_episode`] does this for the
+/// adapter.
+///
+/// Every (seed, episode) pair is a distinct `u64`, so every episode of every device gets its
+/// own seed. With `rand_xoshiro`'s generators, whose `seed_from_u64` fills the state from
+/// SplitMix64 started at that `u64`, the episodes of one device share no SplitMix64 output
+/// (their starts differ by less than 2³², never by SplitMix64's increment or its negative,
+/// both above 2³²): their states are distinct and as independent as SplitMix64 makes any
+/// two seeds.
+///
+/// [`learning_episodes`]: crate::controller::Adapter::learning_episodes
+/// [`evaluations`]: crate::Optimizer::evaluations
+/// [`Adapter::begin_seeded_episode`]: crate::controller::Adapter::begin_seeded_episode
+///
+/// ```
+/// use ctrl_adapt::random::episode_rng;
+/// use rand_core::RngCore;
+/// use rand_xoshiro::Xoshiro128PlusPlus;
+///
+/// let mut a = episode_rng::<Xoshiro128PlusPlus>(7, 3);
+/// let mut b = episode_rng::<Xoshiro128PlusPlus>(7, 3);
+/// assert_eq!(a.next_u64(), b.next_u64()); // the same episode: the same draws
+/// let mut c = episode_rng::<Xoshiro128PlusPlus>(7, 4);
+/// assert_ne!(a.next_u64(), c.next_u64()); // the next episode: other draws
+/// ```
+pub fn episode_rng<R: SeedableRng>(seed: u32, episode: u32) -> R {
+    R::seed_from_u64((u64::from(seed) << 32) | u64::from(episode))
+}
 
 /// A uniform `f32` in `[0, 1)` from the top 24 bits of one `u32` (the mantissa width, so
 /// every value is exactly representable and 1.0 is never produced).
@@ -82,6 +121,24 @@ mod tests {
         fn fill_bytes(&mut self, dst: &mut [u8]) {
             dst.fill(self.0 as u8);
         }
+    }
+
+    /// Checks: the same (seed, episode) gives the same stream; each of 64 episodes of two
+    /// seeds starts a stream of its own (no two of the 128 share a first draw or a state).
+    #[test]
+    fn episode_rngs_are_reproducible_and_distinct() {
+        let first = |seed, episode| {
+            let mut r = episode_rng::<Xoshiro128PlusPlus>(seed, episode);
+            [r.next_u64(), r.next_u64()]
+        };
+        assert_eq!(first(3, 9), first(3, 9));
+        let mut seen = std::collections::BTreeSet::new();
+        for seed in [0, u32::MAX] {
+            for episode in (0..32).chain(u32::MAX - 31..=u32::MAX) {
+                assert!(seen.insert(first(seed, episode)), "{seed} {episode}");
+            }
+        }
+        assert_eq!(seen.len(), 128);
     }
 
     /// Checks: 200,000 polar-method draws have mean 0 ± 0.01, variance 1 ± 0.01, the

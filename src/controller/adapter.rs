@@ -3,6 +3,8 @@
 //!
 //! ```text
 //! begin_episode(rng)  → θ (optimizer.ask, or the best θ when deploying)
+//!   or begin_seeded_episode::<R>(seed): the RNG derived from a device seed and the
+//!   learning episodes told, so that a checkpoint of the adapter needs no RNG state
 //! control(state, obs) → action, every tick (and obs → shaper)
 //! end_episode()       → cost = shaper.cost() → optimizer.tell(cost)
 //! ```
@@ -24,12 +26,13 @@
 
 use core::fmt;
 
-use rand_core::RngCore;
+use rand_core::{RngCore, SeedableRng};
 
 use super::Controller;
 use crate::cost::Shaper;
 use crate::error::{Error, require};
 use crate::optimizer::Optimizer;
+use crate::random::episode_rng;
 use crate::vector::Vector;
 
 /// What the adapter does with episodes.
@@ -366,6 +369,21 @@ where
         Ok(theta)
     }
 
+    /// [`Adapter::begin_episode`] with the RNG of this learning episode derived from the
+    /// device's `seed` and the learning episodes told so far
+    /// ([`random::episode_rng`](crate::random::episode_rng)).
+    ///
+    /// The adapter then is the whole learning state: a checkpoint of it (feature `serde`)
+    /// holds no RNG, and a run resumed from one gives every θ of the uninterrupted run, bit
+    /// for bit; an episode a power cut interrupted (nothing told) gets its candidate again.
+    /// `R` is any seedable RNG, e.g. `rand_xoshiro::Xoshiro128PlusPlus`.
+    pub fn begin_seeded_episode<R: RngCore + SeedableRng>(
+        &mut self,
+        seed: u32,
+    ) -> Result<Vector<P>, AdapterError> {
+        self.begin_episode(&mut episode_rng::<R>(seed, self.learning_episodes))
+    }
+
     /// Starts an episode that runs `theta` (checked against the optimizer's box) and tells
     /// nothing, whatever the mode: to evaluate a θ handed over from elsewhere (a host
     /// simulation, an operator) inside the same envelope. Its report says [`Mode::Deploy`].
@@ -698,6 +716,56 @@ mod tests {
         assert_eq!(a.optimizer().status(), Status::BudgetSpent);
         a.begin_episode(&mut r).unwrap();
         assert_eq!(a.mode(), Mode::Deploy);
+    }
+
+    /// Checks the seeded episodes with SRACOS (which draws in every `ask`): a copy of the
+    /// adapter taken after each tell (what a checkpoint restores) and resumed, after an
+    /// interrupted episode every third time, asks every θ of the uninterrupted run; another
+    /// device seed asks other θ, and each episode's θ is the one `begin_episode` gets from
+    /// `episode_rng(seed, learning episodes told)`.
+    #[test]
+    fn seeded_episodes_resume_from_a_copy_bit_for_bit() {
+        use crate::optimizer::{Sracos, SracosConfig};
+        use crate::random::episode_rng;
+        let fresh = || {
+            let pd = Pd::<1>::try_new(Vector::repeat(2.0), Vector::repeat(0.5)).unwrap();
+            let policy =
+                LinearPolicy::try_new(StateFeatures::identity(), Vector::repeat(1.0)).unwrap();
+            let search: Sracos<2> =
+                Sracos::try_new(Bounds::uniform(-1.0, 1.0).unwrap(), SracosConfig::DEFAULT)
+                    .unwrap();
+            let controller: Ctl = CorrectedPd::new(pd, policy);
+            Adapter::try_new(search, controller, SetCost(0.0), CONFIG, Vector::zeros()).unwrap()
+        };
+        let cost = |t: &Vector<2>| (t[0] - 0.3).powi(2) + (t[1] + 0.2).powi(2);
+        let run = |seed: u32, interrupt: bool| {
+            let mut a = fresh();
+            let mut thetas = std::vec::Vec::new();
+            for k in 0..30u32 {
+                let checkpoint = a;
+                if interrupt && k % 3 == 1 {
+                    // A power cut mid-episode: back to the copy, the episode runs again.
+                    a.begin_seeded_episode::<Xoshiro128PlusPlus>(seed).unwrap();
+                    a.control(&Vector::zeros(), &1.0);
+                    a = checkpoint;
+                }
+                let mut direct = a;
+                let expected = direct
+                    .begin_episode(&mut episode_rng::<Xoshiro128PlusPlus>(seed, k))
+                    .unwrap();
+                let theta = a.begin_seeded_episode::<Xoshiro128PlusPlus>(seed).unwrap();
+                assert_eq!(theta, expected);
+                a.control(&Vector::zeros(), &cost(&theta));
+                a.end_episode().unwrap();
+                thetas.push(theta.map(f32::to_bits));
+            }
+            (thetas, a)
+        };
+        let (straight, end) = run(9, false);
+        let (resumed, resumed_end) = run(9, true);
+        assert_eq!(straight, resumed);
+        assert_eq!(end, resumed_end);
+        assert_ne!(straight, run(10, false).0);
     }
 
     proptest! {
