@@ -229,6 +229,9 @@ pub struct CheckpointStore<F> {
     newest: Option<Option<(usize, u32)>>,
     /// The generation of the next save: one above any commit seen.
     next_generation: u32,
+    /// Slots known to hold an intact checkpoint (loaded, or written and read back by this
+    /// store); a save into a slot not known so checks it first.
+    known_intact: [bool; 2],
 }
 
 impl<F: NorFlash> CheckpointStore<F> {
@@ -246,6 +249,7 @@ impl<F: NorFlash> CheckpointStore<F> {
             slots,
             newest: None,
             next_generation: 1,
+            known_intact: [false; 2],
         })
     }
 
@@ -272,18 +276,17 @@ impl<F: NorFlash> CheckpointStore<F> {
         }
     }
 
-    /// Reads the chunks `commit` names into `record`; the record's bytes, or why not.
-    fn gather<'r>(
+    /// Reads the chunks `commit` names, in order, and hands each one's place in the record
+    /// and bytes to `each`; `Corrupted` when one is missing, of another generation, or they do
+    /// not add up to the commit's length.
+    fn for_each_chunk(
         &mut self,
         slot: usize,
         commit: Commit,
-        record: &'r mut [u8],
         item: &mut [u8],
-    ) -> Result<&'r [u8], CheckpointError> {
+        mut each: impl FnMut(Range<usize>, &[u8]) -> Result<(), CheckpointError>,
+    ) -> Result<(), CheckpointError> {
         let len = commit.len as usize;
-        let out = record
-            .get_mut(..len)
-            .ok_or(CheckpointError::BufferTooSmall)?;
         let mut filled = 0;
         let mut map = map(&mut self.flash, self.slots[slot].clone())?;
         for key in 1..=commit.chunks {
@@ -294,13 +297,95 @@ impl<F: NorFlash> CheckpointStore<F> {
             if chunk.generation != commit.generation || end > len {
                 return Err(CheckpointError::Corrupted);
             }
-            out[filled..end].copy_from_slice(chunk.bytes);
+            each(filled..end, chunk.bytes)?;
             filled = end;
         }
         if filled != len {
             return Err(CheckpointError::Corrupted);
         }
+        Ok(())
+    }
+
+    /// Reads the chunks `commit` names into `record`; the record's bytes, or why not.
+    fn gather<'r>(
+        &mut self,
+        slot: usize,
+        commit: Commit,
+        record: &'r mut [u8],
+        item: &mut [u8],
+    ) -> Result<&'r [u8], CheckpointError> {
+        let out = record
+            .get_mut(..commit.len as usize)
+            .ok_or(CheckpointError::BufferTooSmall)?;
+        self.for_each_chunk(slot, commit, item, |at, bytes| {
+            out[at].copy_from_slice(bytes);
+            Ok(())
+        })?;
         Ok(out)
+    }
+
+    /// Whether `slot` holds a commit whose chunks are all there (the record itself not
+    /// decoded).
+    fn holds_intact_commit(&mut self, slot: usize, item: &mut [u8]) -> bool {
+        match self.commit(slot, item) {
+            SlotState::Committed(commit) => self
+                .for_each_chunk(slot, commit, item, |_, _| Ok(()))
+                .is_ok(),
+            _ => false,
+        }
+    }
+
+    /// Whether every byte of `slot` reads erased (`0xFF`), read `item.len()` bytes at a time.
+    fn is_blank(&mut self, slot: usize, item: &mut [u8]) -> Result<bool, CheckpointError> {
+        let step = item.len() - item.len() % F::READ_SIZE.max(1);
+        let range = self.slots[slot].clone();
+        if step == 0 {
+            return Err(CheckpointError::BufferTooSmall);
+        }
+        let mut at = range.start;
+        while at < range.end {
+            let n = step.min((range.end - at) as usize);
+            embassy_futures::block_on(self.flash.read(at, &mut item[..n]))
+                .map_err(|_| CheckpointError::Flash)?;
+            if item[..n].iter().any(|&b| b != 0xff) {
+                return Ok(false);
+            }
+            at += n as u32;
+        }
+        Ok(true)
+    }
+
+    /// Erases every page of `slot`.
+    fn erase(&mut self, slot: usize) -> Result<(), CheckpointError> {
+        let mut map = map(&mut self.flash, self.slots[slot].clone())?;
+        embassy_futures::block_on(map.erase_all()).map_err(storage_error)
+    }
+
+    /// Writes `record` into `slot` under `commit` (chunks of `room` bytes, commit last), then
+    /// reads it back as [`load`](Self::load) would: `Corrupted` when what is on flash is not
+    /// exactly the record (a write that the flash garbled without an error).
+    fn write_and_verify(
+        &mut self,
+        slot: usize,
+        commit: Commit,
+        record: &[u8],
+        room: usize,
+        item: &mut [u8],
+    ) -> Result<(), CheckpointError> {
+        {
+            let mut map = map(&mut self.flash, self.slots[slot].clone())?;
+            write_slot(&mut map, commit, record, room, item)?;
+        }
+        if self.commit(slot, item) != SlotState::Committed(commit) {
+            return Err(CheckpointError::Corrupted);
+        }
+        self.for_each_chunk(slot, commit, item, |at, bytes| {
+            if record.get(at) == Some(bytes) {
+                Ok(())
+            } else {
+                Err(CheckpointError::Corrupted)
+            }
+        })
     }
 
     /// Boot: the value of the newest intact checkpoint, `None` when there is none (erased
@@ -339,6 +424,8 @@ impl<F: NorFlash> CheckpointStore<F> {
             match outcome {
                 Ok(value) => {
                     self.newest = Some(Some((slot, commit.generation)));
+                    self.known_intact = [false; 2];
+                    self.known_intact[slot] = true;
                     return Ok(Some(value));
                 }
                 // Another type, sizes or version: say so rather than fall back silently.
@@ -357,12 +444,14 @@ impl<F: NorFlash> CheckpointStore<F> {
         if let Some((e, slot, generation)) = refusal {
             // Kept as the newest until a save replaces it (into the other slot).
             self.newest = Some(Some((slot, generation)));
+            self.known_intact = [false; 2];
             return Err(e);
         }
         if states.contains(&SlotState::Unreadable(CheckpointError::Flash)) {
             return Err(CheckpointError::Flash);
         }
         self.newest = Some(None);
+        self.known_intact = [false; 2];
         Ok(None)
     }
 
@@ -406,15 +495,33 @@ impl<F: NorFlash> CheckpointStore<F> {
             chunks,
             len: len as u32,
         };
-        let mut map = map(&mut self.flash, self.slots[target].clone())?;
-        let mut written = write_slot(&mut map, commit, &record[..len], room, item);
-        if written == Err(CheckpointError::Corrupted) {
-            // The target slot does not hold the newest intact checkpoint, so erasing it loses
-            // nothing; `sequential-storage` could not repair it in place.
-            embassy_futures::block_on(map.erase_all()).map_err(storage_error)?;
-            written = write_slot(&mut map, commit, &record[..len], room, item);
+        let record = &record[..len];
+        // The target never holds the newest intact checkpoint, so erasing it loses nothing.
+        // One that holds no intact commit and is not blank (an interrupted save, another
+        // firmware's leftovers) is erased before the write: its free space cannot be trusted.
+        let mut erased = false;
+        if !self.known_intact[target]
+            && !self.holds_intact_commit(target, item)
+            && !self.is_blank(target, item)?
+        {
+            self.erase(target)?;
+            erased = true;
+        }
+        self.known_intact[target] = false;
+        let mut written = self.write_and_verify(target, commit, record, room, item);
+        if !erased
+            && matches!(
+                written,
+                Err(CheckpointError::Flash | CheckpointError::Corrupted)
+            )
+        {
+            // A word the flash will not program again (a torn write, a stray word), or one it
+            // garbled, or a corruption `sequential-storage` could not repair: a fresh slot.
+            self.erase(target)?;
+            written = self.write_and_verify(target, commit, record, room, item);
         }
         written?;
+        self.known_intact[target] = true;
         self.newest = Some(Some((target, generation)));
         Ok(())
     }
