@@ -25,6 +25,26 @@
 //! The slots being separate ranges, a corruption that `sequential-storage` must repair (by
 //! erasing pages of a map) touches one slot only.
 //!
+//! A save never trusts the free space of the slot it writes into, since flash parts differ in
+//! what a second program of a word does (refused on write-once ECC words, ANDed in on
+//! nRF52-like parts, allowed with zeros only on others), and a torn write, a stray word or
+//! another firmware's leftovers may sit there. The target slot never holds the newest intact
+//! checkpoint, so erasing it loses nothing:
+//!
+//! - before the first write into a slot since boot, the store checks it: a slot that holds no
+//!   intact commit (its chunks all there) and is not blank is erased first;
+//! - a write that fails (the flash refuses a word, or `sequential-storage` finds corruption it
+//!   cannot repair) or that does not read back as the record is retried once into the erased
+//!   slot;
+//! - [`save`](CheckpointStore::save) returns `Ok` only after reading the commit and every chunk
+//!   back, as [`load`](CheckpointStore::load) will, and finding the record bit for bit. A
+//!   save that returns `Ok` is therefore the one the next boot loads (unless the flash is
+//!   corrupted after it).
+//!
+//! A save so costs, besides its writes, the reads of its own read-back, and after boot (or an
+//! interrupted save) the check of its slot; it erases a slot only when one of the rules above
+//! asks for it.
+//!
 //! `sequential-storage` is async; the flash is `embedded-storage-async`'s [`NorFlash`], and
 //! the store drives it with `embassy_futures::block_on`: with a blocking flash driver every
 //! future completes at its first poll. A driver that implements only the blocking
@@ -66,9 +86,12 @@ pub enum CheckpointError {
     /// The record needs more chunks than a slot can name (65 535), or a chunk does not fit a
     /// page, or the slot cannot hold the record: use a larger slot or smaller items.
     SlotTooSmall,
-    /// The flash driver reported an error (a power cut during a save shows as this).
+    /// The flash driver reported an error (a power cut during a save shows as this), also
+    /// after the save erased its slot and tried again.
     Flash,
-    /// `sequential-storage` found corruption in a slot that it could not repair.
+    /// `sequential-storage` found corruption in a slot that it could not repair, or a save
+    /// read back something other than its record, also after erasing its slot and trying
+    /// again.
     Corrupted,
     /// The newest checkpoint is intact but not of this type, sizes or format version.
     Record(RecordError),
@@ -456,9 +479,13 @@ impl<F: NorFlash> CheckpointStore<F> {
     }
 
     /// Saves `value` as the newest checkpoint: into the slot that does not hold the newest
-    /// intact one, commit last. When this returns an error (a power cut, a full slot) the
-    /// previous checkpoint is still the one [`load`](Self::load) finds. Before the first
-    /// save after boot the store reads the slots (as `load` does) if `load` was not called.
+    /// intact one, commit last, then reads it back. `Ok` means the next [`load`](Self::load)
+    /// finds exactly this checkpoint. When this returns an error (a power cut, a full slot, a
+    /// write that failed or read back wrong twice) the previous checkpoint is still the one
+    /// `load` finds. The target slot is erased first when it holds no intact commit and is
+    /// not blank, and erased and written again once when a write fails or reads back wrong
+    /// (see the [module docs](self)). Before the first save after boot the store reads the
+    /// slots (as `load` does) if `load` was not called.
     pub fn save<T: Persistent>(
         &mut self,
         value: &T,

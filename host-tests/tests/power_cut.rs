@@ -1,6 +1,8 @@
 //! Learning that survives a power cut: the adapter with its optimizer and the RNG saved to a
-//! [`CheckpointStore`] after every episode, on a test NOR flash that loses power after the
-//! k-th word written or erased, for every k of every save of a run.
+//! [`CheckpointStore`] after every episode, on a test NOR flash ([`CutFlash`]) that loses
+//! power after the k-th word written or erased, for every k of every save of a run, under each
+//! of three programming rules (write-once words, AND-programming, re-writable zeros); and a
+//! flash that starts full of leftover data, or with a stray word in its free space.
 
 use ctrl_adapt::checkpoint::{CheckpointError, CheckpointStore};
 use ctrl_adapt::controller::{
