@@ -536,7 +536,8 @@ fn leftover_data_at_first_boot_is_cleared_not_trusted() {
 
 /// Checks, on each programming rule: after a run of 12 saves, a stray word programmed into
 /// any erased word of the flash (each in turn) leaves boot on the newest checkpoint or the
-/// one before (a stray word on a page marker can hide the newest), never anything else, and
+/// one before (a stray word on a page's start marker, or where `sequential-storage` reads the
+/// next item header, spoils the newest slot's map), never anything else, and
 /// each of 3 saves after it returns `Ok` and is what a fresh boot loads, bit for bit.
 #[test]
 fn a_stray_word_in_free_space_never_loses_a_save() {
