@@ -25,6 +25,26 @@
 //! The slots being separate ranges, a corruption that `sequential-storage` must repair (by
 //! erasing pages of a map) touches one slot only.
 //!
+//! A save never trusts the free space of the slot it writes into, since flash parts differ in
+//! what a second program of a word does (refused on write-once ECC words, ANDed in on
+//! nRF52-like parts, allowed with zeros only on others), and a torn write, a stray word or
+//! another firmware's leftovers may sit there. The target slot never holds the newest intact
+//! checkpoint, so erasing it loses nothing:
+//!
+//! - before the first write into a slot since boot, the store checks it: a slot that holds no
+//!   intact commit (its chunks all there) and is not blank is erased first;
+//! - a write that fails (the flash refuses a word, or `sequential-storage` finds corruption it
+//!   cannot repair) or that does not read back as the record is retried once into the erased
+//!   slot;
+//! - [`save`](CheckpointStore::save) returns `Ok` only after reading the commit and every chunk
+//!   back, as [`load`](CheckpointStore::load) will, and finding the record bit for bit. A
+//!   save that returns `Ok` is therefore the one the next boot loads (unless the flash is
+//!   corrupted after it).
+//!
+//! A save so costs, besides its writes, the reads of its own read-back, and after boot (or an
+//! interrupted save) the check of its slot; it erases a slot only when one of the rules above
+//! asks for it.
+//!
 //! `sequential-storage` is async; the flash is `embedded-storage-async`'s [`NorFlash`], and
 //! the store drives it with `embassy_futures::block_on`: with a blocking flash driver every
 //! future completes at its first poll. A driver that implements only the blocking
@@ -66,9 +86,12 @@ pub enum CheckpointError {
     /// The record needs more chunks than a slot can name (65 535), or a chunk does not fit a
     /// page, or the slot cannot hold the record: use a larger slot or smaller items.
     SlotTooSmall,
-    /// The flash driver reported an error (a power cut during a save shows as this).
+    /// The flash driver reported an error (a power cut during a save shows as this), also
+    /// after the save erased its slot and tried again.
     Flash,
-    /// `sequential-storage` found corruption in a slot that it could not repair.
+    /// `sequential-storage` found corruption in a slot that it could not repair, or a save
+    /// read back something other than its record, also after erasing its slot and trying
+    /// again.
     Corrupted,
     /// The newest checkpoint is intact but not of this type, sizes or format version.
     Record(RecordError),
@@ -229,6 +252,9 @@ pub struct CheckpointStore<F> {
     newest: Option<Option<(usize, u32)>>,
     /// The generation of the next save: one above any commit seen.
     next_generation: u32,
+    /// Slots known to hold an intact checkpoint (loaded, or written and read back by this
+    /// store); a save into a slot not known so checks it first.
+    known_intact: [bool; 2],
 }
 
 impl<F: NorFlash> CheckpointStore<F> {
@@ -246,6 +272,7 @@ impl<F: NorFlash> CheckpointStore<F> {
             slots,
             newest: None,
             next_generation: 1,
+            known_intact: [false; 2],
         })
     }
 
@@ -272,18 +299,17 @@ impl<F: NorFlash> CheckpointStore<F> {
         }
     }
 
-    /// Reads the chunks `commit` names into `record`; the record's bytes, or why not.
-    fn gather<'r>(
+    /// Reads the chunks `commit` names, in order, and hands each one's place in the record
+    /// and bytes to `each`; `Corrupted` when one is missing, of another generation, or they do
+    /// not add up to the commit's length.
+    fn for_each_chunk(
         &mut self,
         slot: usize,
         commit: Commit,
-        record: &'r mut [u8],
         item: &mut [u8],
-    ) -> Result<&'r [u8], CheckpointError> {
+        mut each: impl FnMut(Range<usize>, &[u8]) -> Result<(), CheckpointError>,
+    ) -> Result<(), CheckpointError> {
         let len = commit.len as usize;
-        let out = record
-            .get_mut(..len)
-            .ok_or(CheckpointError::BufferTooSmall)?;
         let mut filled = 0;
         let mut map = map(&mut self.flash, self.slots[slot].clone())?;
         for key in 1..=commit.chunks {
@@ -294,13 +320,95 @@ impl<F: NorFlash> CheckpointStore<F> {
             if chunk.generation != commit.generation || end > len {
                 return Err(CheckpointError::Corrupted);
             }
-            out[filled..end].copy_from_slice(chunk.bytes);
+            each(filled..end, chunk.bytes)?;
             filled = end;
         }
         if filled != len {
             return Err(CheckpointError::Corrupted);
         }
+        Ok(())
+    }
+
+    /// Reads the chunks `commit` names into `record`; the record's bytes, or why not.
+    fn gather<'r>(
+        &mut self,
+        slot: usize,
+        commit: Commit,
+        record: &'r mut [u8],
+        item: &mut [u8],
+    ) -> Result<&'r [u8], CheckpointError> {
+        let out = record
+            .get_mut(..commit.len as usize)
+            .ok_or(CheckpointError::BufferTooSmall)?;
+        self.for_each_chunk(slot, commit, item, |at, bytes| {
+            out[at].copy_from_slice(bytes);
+            Ok(())
+        })?;
         Ok(out)
+    }
+
+    /// Whether `slot` holds a commit whose chunks are all there (the record itself not
+    /// decoded).
+    fn holds_intact_commit(&mut self, slot: usize, item: &mut [u8]) -> bool {
+        match self.commit(slot, item) {
+            SlotState::Committed(commit) => self
+                .for_each_chunk(slot, commit, item, |_, _| Ok(()))
+                .is_ok(),
+            _ => false,
+        }
+    }
+
+    /// Whether every byte of `slot` reads erased (`0xFF`), read `item.len()` bytes at a time.
+    fn is_blank(&mut self, slot: usize, item: &mut [u8]) -> Result<bool, CheckpointError> {
+        let step = item.len() - item.len() % F::READ_SIZE.max(1);
+        let range = self.slots[slot].clone();
+        if step == 0 {
+            return Err(CheckpointError::BufferTooSmall);
+        }
+        let mut at = range.start;
+        while at < range.end {
+            let n = step.min((range.end - at) as usize);
+            embassy_futures::block_on(self.flash.read(at, &mut item[..n]))
+                .map_err(|_| CheckpointError::Flash)?;
+            if item[..n].iter().any(|&b| b != 0xff) {
+                return Ok(false);
+            }
+            at += n as u32;
+        }
+        Ok(true)
+    }
+
+    /// Erases every page of `slot`.
+    fn erase(&mut self, slot: usize) -> Result<(), CheckpointError> {
+        let mut map = map(&mut self.flash, self.slots[slot].clone())?;
+        embassy_futures::block_on(map.erase_all()).map_err(storage_error)
+    }
+
+    /// Writes `record` into `slot` under `commit` (chunks of `room` bytes, commit last), then
+    /// reads it back as [`load`](Self::load) would: `Corrupted` when what is on flash is not
+    /// exactly the record (a write that the flash garbled without an error).
+    fn write_and_verify(
+        &mut self,
+        slot: usize,
+        commit: Commit,
+        record: &[u8],
+        room: usize,
+        item: &mut [u8],
+    ) -> Result<(), CheckpointError> {
+        {
+            let mut map = map(&mut self.flash, self.slots[slot].clone())?;
+            write_slot(&mut map, commit, record, room, item)?;
+        }
+        if self.commit(slot, item) != SlotState::Committed(commit) {
+            return Err(CheckpointError::Corrupted);
+        }
+        self.for_each_chunk(slot, commit, item, |at, bytes| {
+            if record.get(at) == Some(bytes) {
+                Ok(())
+            } else {
+                Err(CheckpointError::Corrupted)
+            }
+        })
     }
 
     /// Boot: the value of the newest intact checkpoint, `None` when there is none (erased
@@ -339,6 +447,8 @@ impl<F: NorFlash> CheckpointStore<F> {
             match outcome {
                 Ok(value) => {
                     self.newest = Some(Some((slot, commit.generation)));
+                    self.known_intact = [false; 2];
+                    self.known_intact[slot] = true;
                     return Ok(Some(value));
                 }
                 // Another type, sizes or version: say so rather than fall back silently.
@@ -357,19 +467,25 @@ impl<F: NorFlash> CheckpointStore<F> {
         if let Some((e, slot, generation)) = refusal {
             // Kept as the newest until a save replaces it (into the other slot).
             self.newest = Some(Some((slot, generation)));
+            self.known_intact = [false; 2];
             return Err(e);
         }
         if states.contains(&SlotState::Unreadable(CheckpointError::Flash)) {
             return Err(CheckpointError::Flash);
         }
         self.newest = Some(None);
+        self.known_intact = [false; 2];
         Ok(None)
     }
 
     /// Saves `value` as the newest checkpoint: into the slot that does not hold the newest
-    /// intact one, commit last. When this returns an error (a power cut, a full slot) the
-    /// previous checkpoint is still the one [`load`](Self::load) finds. Before the first
-    /// save after boot the store reads the slots (as `load` does) if `load` was not called.
+    /// intact one, commit last, then reads it back. `Ok` means the next [`load`](Self::load)
+    /// finds exactly this checkpoint. When this returns an error (a power cut, a full slot, a
+    /// write that failed or read back wrong twice) the previous checkpoint is still the one
+    /// `load` finds. The target slot is erased first when it holds no intact commit and is
+    /// not blank, and erased and written again once when a write fails or reads back wrong
+    /// (see the [module docs](self)). Before the first save after boot the store reads the
+    /// slots (as `load` does) if `load` was not called.
     pub fn save<T: Persistent>(
         &mut self,
         value: &T,
@@ -406,15 +522,33 @@ impl<F: NorFlash> CheckpointStore<F> {
             chunks,
             len: len as u32,
         };
-        let mut map = map(&mut self.flash, self.slots[target].clone())?;
-        let mut written = write_slot(&mut map, commit, &record[..len], room, item);
-        if written == Err(CheckpointError::Corrupted) {
-            // The target slot does not hold the newest intact checkpoint, so erasing it loses
-            // nothing; `sequential-storage` could not repair it in place.
-            embassy_futures::block_on(map.erase_all()).map_err(storage_error)?;
-            written = write_slot(&mut map, commit, &record[..len], room, item);
+        let record = &record[..len];
+        // The target never holds the newest intact checkpoint, so erasing it loses nothing.
+        // One that holds no intact commit and is not blank (an interrupted save, another
+        // firmware's leftovers) is erased before the write: its free space cannot be trusted.
+        let mut erased = false;
+        if !self.known_intact[target]
+            && !self.holds_intact_commit(target, item)
+            && !self.is_blank(target, item)?
+        {
+            self.erase(target)?;
+            erased = true;
+        }
+        self.known_intact[target] = false;
+        let mut written = self.write_and_verify(target, commit, record, room, item);
+        if !erased
+            && matches!(
+                written,
+                Err(CheckpointError::Flash | CheckpointError::Corrupted)
+            )
+        {
+            // A word the flash will not program again (a torn write, a stray word), or one it
+            // garbled, or a corruption `sequential-storage` could not repair: a fresh slot.
+            self.erase(target)?;
+            written = self.write_and_verify(target, commit, record, room, item);
         }
         written?;
+        self.known_intact[target] = true;
         self.newest = Some(Some((target, generation)));
         Ok(())
     }

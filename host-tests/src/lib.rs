@@ -2,7 +2,7 @@
 //! [`Optimizer`] against them, shared by the integration tests, the demo and the benchmarks.
 //! The plants: [`auv`] (survey under a current) and [`hopper`] (hopping leg); the experiment
 //! tasks that drive them through the library's adapter: [`auv_task`] and [`hopper_task`];
-//! the demo's figures: [`plots`].
+//! the demo's figures: [`plots`]; the test NOR flash of the checkpoint tests: [`cut_flash`].
 
 use ctrl_adapt::controller::{Adapter, AdapterError, Controller, EpisodeReport, EpisodeRunner};
 use ctrl_adapt::cost::Shaper;
@@ -13,6 +13,7 @@ pub mod adversarial;
 pub mod arm;
 pub mod auv;
 pub mod auv_task;
+pub mod cut_flash;
 pub mod double_integrator;
 pub mod functions;
 pub mod hopper;

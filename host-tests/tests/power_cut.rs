@@ -1,6 +1,8 @@
 //! Learning that survives a power cut: the adapter with its optimizer and the RNG saved to a
-//! [`CheckpointStore`] after every episode, on a test NOR flash that loses power after the
-//! k-th word written or erased, for every k of every save of a run.
+//! [`CheckpointStore`] after every episode, on a test NOR flash ([`CutFlash`]) that loses
+//! power after the k-th word written or erased, for every k of every save of a run, under each
+//! of three programming rules (write-once words, AND-programming, re-writable zeros); and a
+//! flash that starts full of leftover data, or with a stray word in its free space.
 
 use ctrl_adapt::checkpoint::{CheckpointError, CheckpointStore};
 use ctrl_adapt::controller::{
@@ -13,16 +15,13 @@ use ctrl_adapt::optimizer::{
 };
 use ctrl_adapt::record::{self, Persistent, RecordError, Shape};
 use embassy_embedded_hal::adapter::BlockingAsync;
-use embedded_storage::nor_flash::{
-    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
+use host_tests::cut_flash::{CutFlash, Programming, WORD};
 use host_tests::double_integrator::DoubleIntegrator;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-const WORD: usize = 4;
 const PAGE: usize = 512;
 const SLOT_PAGES: usize = 3;
 const FLASH: usize = 2 * SLOT_PAGES * PAGE;
@@ -33,150 +32,10 @@ const SLOTS: [core::ops::Range<u32>; 2] = [
 const ITEM: usize = 128;
 const RECORD: usize = 2048;
 
-/// Why the test flash refused an operation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum FlashError {
-    /// The power is off (this operation was the cut one, or came after it).
-    PowerCut,
-    /// A word written twice without an erase between: a bug in the store.
-    NotErased,
-    /// Misaligned or out of range.
-    Bounds,
-}
+type Flash = CutFlash<PAGE>;
 
-impl NorFlashError for FlashError {
-    fn kind(&self) -> NorFlashErrorKind {
-        match self {
-            Self::Bounds => NorFlashErrorKind::OutOfBounds,
-            _ => NorFlashErrorKind::Other,
-        }
-    }
-}
-
-/// NOR flash in RAM (words of 4 bytes, pages of 512) that counts the words it writes or
-/// erases and loses power at the `cut_at`-th: that word is torn (a write leaves its first
-/// two bytes programmed, an erase the page erased up to it) and every later operation fails
-/// until [`CutFlash::reboot`]. A word may be written once per erase.
-#[derive(Clone)]
-struct CutFlash {
-    data: Vec<u8>,
-    ops: u64,
-    /// Pages erased, over the flash's life.
-    erases: u64,
-    cut_at: Option<u64>,
-    dead: bool,
-    /// Refuse a write to a word not erased (a bug in the store); off, program it as NOR
-    /// flash does (1 bits to 0), as over a corrupted erased byte.
-    strict: bool,
-}
-
-impl CutFlash {
-    fn erased() -> Self {
-        Self {
-            data: vec![0xff; FLASH],
-            ops: 0,
-            erases: 0,
-            cut_at: None,
-            dead: false,
-            strict: true,
-        }
-    }
-
-    /// Counts one word operation; false when the power fails at it (or failed before).
-    fn power(&mut self) -> bool {
-        if self.dead {
-            return false;
-        }
-        self.ops += 1;
-        if self.cut_at == Some(self.ops) {
-            self.dead = true;
-        }
-        !self.dead
-    }
-
-    /// Power back: no cut planned, the counter at zero.
-    fn reboot(&mut self) {
-        self.dead = false;
-        self.cut_at = None;
-        self.ops = 0;
-    }
-
-    /// Cuts the power at the `k`-th word operation from now.
-    fn cut_after(&mut self, k: u64) {
-        self.ops = 0;
-        self.cut_at = Some(k);
-    }
-}
-
-impl ErrorType for CutFlash {
-    type Error = FlashError;
-}
-
-impl ReadNorFlash for CutFlash {
-    const READ_SIZE: usize = WORD;
-
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let at = offset as usize;
-        if self.dead {
-            return Err(FlashError::PowerCut);
-        }
-        if !at.is_multiple_of(WORD) || !bytes.len().is_multiple_of(WORD) || at + bytes.len() > FLASH
-        {
-            return Err(FlashError::Bounds);
-        }
-        bytes.copy_from_slice(&self.data[at..at + bytes.len()]);
-        Ok(())
-    }
-
-    fn capacity(&self) -> usize {
-        FLASH
-    }
-}
-
-impl NorFlash for CutFlash {
-    const WRITE_SIZE: usize = WORD;
-    const ERASE_SIZE: usize = PAGE;
-
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
-        let (from, to) = (from as usize, to as usize);
-        if !from.is_multiple_of(PAGE) || !to.is_multiple_of(PAGE) || from > to || to > FLASH {
-            return Err(FlashError::Bounds);
-        }
-        for word in (from..to).step_by(WORD) {
-            if !self.power() {
-                return Err(FlashError::PowerCut);
-            }
-            self.data[word..word + WORD].fill(0xff);
-        }
-        self.erases += ((to - from) / PAGE) as u64;
-        Ok(())
-    }
-
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let at = offset as usize;
-        if !at.is_multiple_of(WORD) || !bytes.len().is_multiple_of(WORD) || at + bytes.len() > FLASH
-        {
-            return Err(FlashError::Bounds);
-        }
-        for (i, word) in bytes.chunks(WORD).enumerate() {
-            let place = at + i * WORD;
-            if self.strict && self.data[place..place + WORD] != [0xff; WORD] {
-                return Err(FlashError::NotErased);
-            }
-            if !self.power() {
-                if self.cut_at == Some(self.ops) {
-                    // Torn: half the word programmed.
-                    self.data[place] &= word[0];
-                    self.data[place + 1] &= word[1];
-                }
-                return Err(FlashError::PowerCut);
-            }
-            for (d, s) in self.data[place..place + WORD].iter_mut().zip(word) {
-                *d &= s;
-            }
-        }
-        Ok(())
-    }
+fn erased(rule: Programming) -> Flash {
+    CutFlash::erased(FLASH, rule)
 }
 
 type Plant = CorrectedPd<1, 2, 2, 2, StateFeatures<2>>;
@@ -249,9 +108,9 @@ fn bytes<T: Persistent>(value: &T) -> Vec<u8> {
     record::save(value, &mut buf).unwrap().to_vec()
 }
 
-type Store<'f> = CheckpointStore<BlockingAsync<&'f mut CutFlash>>;
+type Store<'f> = CheckpointStore<BlockingAsync<&'f mut Flash>>;
 
-fn store(flash: &mut CutFlash) -> Store<'_> {
+fn store(flash: &mut Flash) -> Store<'_> {
     CheckpointStore::try_new(BlockingAsync::new(flash), SLOTS).unwrap()
 }
 
@@ -272,17 +131,17 @@ where
 struct Reference {
     events: Vec<([u32; 2], u32)>,
     records: Vec<Vec<u8>>,
-    images: Vec<CutFlash>,
+    images: Vec<Flash>,
     ops: Vec<u64>,
     /// Pages erased over the run.
     erases: u64,
 }
 
-fn reference<O>(initial: &Learner<Learning<O>>, episodes: usize) -> Reference
+fn reference<O>(initial: &Learner<Learning<O>>, episodes: usize, rule: Programming) -> Reference
 where
     O: Optimizer<2> + Persistent + Clone,
 {
-    let mut flash = CutFlash::erased();
+    let mut flash = erased(rule);
     let mut l = boot(&mut store(&mut flash), initial);
     let mut r = Reference {
         events: Vec::new(),
@@ -313,7 +172,7 @@ where
 
 /// Continues `l` (which has run `l.episodes`) to `episodes` with a save after each, and
 /// checks every event and the final state against the reference.
-fn finish<O>(mut l: Learner<Learning<O>>, flash: &mut CutFlash, r: &Reference, episodes: usize)
+fn finish<O>(mut l: Learner<Learning<O>>, flash: &mut Flash, r: &Reference, episodes: usize)
 where
     O: Optimizer<2> + Persistent + Clone,
 {
@@ -327,16 +186,28 @@ where
     assert_eq!(bytes(&l), r.records[episodes]);
 }
 
-/// Cuts the power at every word operation of every save of a run of `episodes`; after each
-/// cut, boot loads the state before or after the interrupted save (bit for bit), and the
-/// learning that continues from it ends exactly as the uninterrupted run. Returns the cuts
-/// tried and how many booted into the state after the save.
-fn cut_everywhere<O>(optimizer: O, episodes: usize) -> (u64, u64, u64, usize)
+/// What one sweep of power cuts found.
+struct Sweep {
+    cuts: u64,
+    /// Cuts that booted into the state after the interrupted save.
+    after: u64,
+    /// Pages erased in the uninterrupted run.
+    erases: u64,
+    /// The largest record of the run (bytes).
+    record: usize,
+}
+
+/// Cuts the power at every word operation of every save of a run of `episodes` on a flash
+/// of `rule` whose torn words get `tear_bytes` bytes programmed; after each cut, boot loads
+/// the state before or after the interrupted save (bit for bit), and the learning that
+/// continues from it (a save after every episode, each of which must succeed) ends exactly
+/// as the uninterrupted run.
+fn cut_everywhere<O>(optimizer: O, episodes: usize, rule: Programming, tear_bytes: usize) -> Sweep
 where
     O: Optimizer<2> + Persistent + Clone,
 {
     let initial = learner(optimizer);
-    let r = reference(&initial, episodes);
+    let r = reference(&initial, episodes, rule);
     let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
     let (mut cuts, mut after) = (0, 0);
     for save in 0..episodes {
@@ -344,6 +215,7 @@ where
         // k = ops + 1: the cut comes just after the save (its last word is the commit's).
         for k in 1..=r.ops[save] + 1 {
             let mut flash = r.images[save].clone();
+            flash.tear_bytes = tear_bytes;
             flash.cut_after(k);
             {
                 let mut s = store(&mut flash);
@@ -366,8 +238,12 @@ where
             finish(booted, &mut flash, &r, episodes);
         }
     }
-    let largest = r.records.iter().map(Vec::len).max().unwrap_or(0);
-    (cuts, after, r.erases, largest)
+    Sweep {
+        cuts,
+        after,
+        erases: r.erases,
+        record: r.records.iter().map(Vec::len).max().unwrap_or(0),
+    }
 }
 
 fn bounds() -> Bounds<2> {
@@ -376,18 +252,64 @@ fn bounds() -> Bounds<2> {
 
 const EPISODES: usize = 12;
 
-fn report(name: &str, (cuts, after, erases, record): (u64, u64, u64, usize)) {
-    let saves = after;
+fn report(name: &str, rule: Programming, tear_bytes: usize, sweep: Sweep) {
     println!(
-        "{name}: {cuts} power cuts in {saves} saves ({erases} page erases), {after} booted \
-         into the new checkpoint, {} into the one before; largest record {record} bytes",
-        cuts - after
+        "{name}, {}, torn word {tear_bytes} of {WORD} bytes programmed: {} power cuts ({} page \
+         erases in the run), {} booted into the new checkpoint, {} into the one before; \
+         largest record {} bytes",
+        rule.name(),
+        sweep.cuts,
+        sweep.erases,
+        sweep.after,
+        sweep.cuts - sweep.after,
+        sweep.record,
     );
-    assert!(erases > 0, "the run must cross a garbage collection");
+    assert!(sweep.erases > 0, "the run must cross a garbage collection");
 }
 
-/// Checks, for the coordinate search inside the adapter, every power cut of every save: boot
-/// finds the state before or after the save, and learning ends as if never cut.
+/// Every power cut of every save, for one optimizer, on each programming rule and both
+/// tears (a torn word with nothing programmed, or half of it).
+fn every_rule<O>(name: &str, optimizer: O, episodes: usize)
+where
+    O: Optimizer<2> + Persistent + Clone,
+{
+    for rule in Programming::ALL {
+        for tear_bytes in [0, WORD / 2] {
+            let sweep = cut_everywhere(optimizer.clone(), episodes, rule, tear_bytes);
+            report(name, rule, tear_bytes, sweep);
+        }
+    }
+}
+
+/// The sweep on write-once words with half of the torn word programmed, for the optimizers
+/// that [`every_rule`] does not sweep.
+fn write_once<O>(name: &str, optimizer: O, episodes: usize)
+where
+    O: Optimizer<2> + Persistent + Clone,
+{
+    let rule = Programming::WriteOnce;
+    report(
+        name,
+        rule,
+        WORD / 2,
+        cut_everywhere(optimizer, episodes, rule, WORD / 2),
+    );
+}
+
+/// Checks, for CMA-ES inside the adapter, every power cut of every save on each programming
+/// rule (write-once words, AND-programming, re-writable zeros) and both tears: boot finds
+/// the state before or after the save, every later save succeeds, and learning ends as if
+/// never cut. On write-once words a torn page marker cannot be written again: the store
+/// must erase the slot rather than fail every later save.
+#[test]
+fn cmaes_survives_every_power_cut_on_each_programming_rule() {
+    let o = Cmaes::<2, 4>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
+    every_rule("CMA-ES", o, EPISODES);
+}
+
+/// Checks, for the coordinate search inside the adapter, every power cut of every save on
+/// write-once words: boot finds the state before or after the save, and learning ends as if
+/// never cut.
 #[test]
 fn coordinate_search_survives_every_power_cut() {
     let config = CoordinateConfig {
@@ -395,28 +317,21 @@ fn coordinate_search_survives_every_power_cut() {
         ..CoordinateConfig::DEFAULT
     };
     let o = CoordinateSearch::try_new(bounds(), Vector::zeros(), config).unwrap();
-    report("coordinate search", cut_everywhere(o, EPISODES));
+    write_once("coordinate search", o, EPISODES);
 }
 
 /// As above, for SRACOS.
 #[test]
 fn sracos_survives_every_power_cut() {
     let o = Sracos::<2>::try_new(bounds(), SracosConfig::DEFAULT).unwrap();
-    report("SRACOS", cut_everywhere(o, EPISODES));
+    write_once("SRACOS", o, EPISODES);
 }
 
 /// As above, for the diagonal CEM (batches of 4: the run crosses batch updates).
 #[test]
 fn diagonal_cem_survives_every_power_cut() {
     let o = DiagonalCem::<2, 4, 2>::try_new(bounds(), Vector::zeros(), CemConfig::DEFAULT).unwrap();
-    report("diagonal CEM", cut_everywhere(o, EPISODES));
-}
-
-/// As above, for CMA-ES (population 4: the run crosses generations).
-#[test]
-fn cmaes_survives_every_power_cut() {
-    let o = Cmaes::<2, 4>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
-    report("CMA-ES", cut_everywhere(o, EPISODES));
+    write_once("diagonal CEM", o, EPISODES);
 }
 
 /// As above, for ROCK* (a memory of 10 rollouts: the run crosses its first update), over 6
@@ -429,62 +344,62 @@ fn rockstar_survives_every_power_cut() {
         ..RockstarConfig::DEFAULT
     };
     let o = Rockstar::<2, 10>::try_new(bounds(), Vector::zeros(), config).unwrap();
-    report("ROCK*", cut_everywhere(o, 6));
+    write_once("ROCK*", o, 6);
 }
 
-/// Checks: boot on erased flash finds nothing and learning starts fresh; after a run, a
-/// corrupted byte anywhere in the flash (each byte in turn, every bit flipped) never panics
-/// and boot loads the newest checkpoint, or the one before it when the byte spoilt the
-/// newest; never anything else. A save after such a boot succeeds and is the one found next.
-/// A checkpoint of other sizes is refused by name, and saving afresh over it works.
+/// Checks: boot on erased flash finds nothing and learning starts fresh; after a run, on
+/// each programming rule, a corrupted byte anywhere in the flash (each byte in turn, every
+/// bit flipped) never panics and boot loads the newest checkpoint, or the one before it when
+/// the byte spoilt the newest; never anything else. The next save succeeds and is the one
+/// found next, even when it lands on the corrupted byte. A checkpoint of other sizes is
+/// refused by name, and saving afresh over it works.
 #[test]
 fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
+    type Learn = Learner<Learning<Cmaes<2, 4>>>;
     let o = Cmaes::<2, 4>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
     let initial = learner(o);
     let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
-    let mut erased = CutFlash::erased();
-    let mut s = store(&mut erased);
-    assert!(
-        s.load::<Learner<Learning<Cmaes<2, 4>>>>(&mut rec, &mut item)
-            .unwrap()
-            .is_none()
-    );
+    let mut blank = erased(Programming::WriteOnce);
+    let mut s = store(&mut blank);
+    assert!(s.load::<Learn>(&mut rec, &mut item).unwrap().is_none());
     assert_eq!(s.generation(), None);
 
-    let r = reference(&initial, EPISODES);
-    let mut flash = r.images[EPISODES - 1].clone();
-    let last = record::load::<Learner<Learning<Cmaes<2, 4>>>>(&r.records[EPISODES]).unwrap();
-    store(&mut flash).save(&last, &mut rec, &mut item).unwrap();
-    let (mut newest, mut fallback, mut landed) = (0, 0, 0);
-    for at in 0..FLASH {
-        let mut bad = flash.clone();
-        bad.strict = false;
-        bad.data[at] ^= 0xff;
-        let mut s = store(&mut bad);
-        let booted = boot(&mut s, &initial);
-        let found = bytes(&booted);
-        if found == r.records[EPISODES] {
-            newest += 1;
-        } else {
-            assert_eq!(found, r.records[EPISODES - 1], "byte {at}");
-            fallback += 1;
+    let mut flash = erased(Programming::WriteOnce);
+    for rule in Programming::ALL {
+        let r = reference(&initial, EPISODES, rule);
+        flash = r.images[EPISODES - 1].clone();
+        let last = record::load::<Learn>(&r.records[EPISODES]).unwrap();
+        store(&mut flash).save(&last, &mut rec, &mut item).unwrap();
+        let (mut newest, mut fallback) = (0, 0);
+        for at in 0..FLASH {
+            let mut bad = flash.clone();
+            bad.corrupt(at, 0xff);
+            let mut s = store(&mut bad);
+            let booted = boot(&mut s, &initial);
+            let found = bytes(&booted);
+            if found == r.records[EPISODES] {
+                newest += 1;
+            } else {
+                assert_eq!(found, r.records[EPISODES - 1], "{}, byte {at}", rule.name());
+                fallback += 1;
+            }
+            let mut next = booted.clone();
+            episode(&mut next);
+            s.save(&next, &mut rec, &mut item).unwrap();
+            let again = bytes(&boot(&mut store(&mut bad), &initial));
+            assert!(
+                again == bytes(&next),
+                "{}, byte {at}: boot loaded another state than the one saved",
+                rule.name()
+            );
         }
-        let mut next = booted.clone();
-        episode(&mut next);
-        s.save(&next, &mut rec, &mut item).unwrap();
-        // The save may have landed on the corrupted byte (then it is caught and the state
-        // booted before is found again).
-        let again = bytes(&boot(&mut store(&mut bad), &initial));
-        if again != bytes(&next) {
-            assert_eq!(again, found, "byte {at}");
-            landed += 1;
-        }
+        println!(
+            "corrupted bytes, {}: {FLASH} bytes flipped in turn; {newest} kept the newest \
+             checkpoint, {fallback} fell back to the one before; every next save was found",
+            rule.name()
+        );
+        assert!(fallback > 0 && newest > 0);
     }
-    println!(
-        "corrupted bytes: {newest} kept the newest checkpoint, {fallback} fell back to the one \
-         before; the next save landed on the corruption {landed} times"
-    );
-    assert!(fallback > 0 && newest > 0);
     // An intact checkpoint of other sizes is refused by name, not loaded nor skipped.
     assert_eq!(
         store(&mut flash)
@@ -508,66 +423,162 @@ fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
     assert_eq!(bytes(&found), bytes(&other));
 }
 
-/// A NOR flash in RAM with 4 KiB pages (a common internal-flash page) that counts the bytes
-/// written and the pages erased, for the size and wear figures.
-struct MeteredFlash {
-    data: Vec<u8>,
-    written: u64,
-    erases: u64,
-}
-
-const BIG_PAGE: usize = 4096;
-
-impl ErrorType for MeteredFlash {
-    type Error = FlashError;
-}
-
-impl ReadNorFlash for MeteredFlash {
-    const READ_SIZE: usize = WORD;
-
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let at = offset as usize;
-        let src = self
-            .data
-            .get(at..at + bytes.len())
-            .ok_or(FlashError::Bounds)?;
-        bytes.copy_from_slice(src);
-        Ok(())
-    }
-
-    fn capacity(&self) -> usize {
-        self.data.len()
+/// Saves `l` after each of `saves` more episodes into `flash`, booting afresh before each
+/// save, and checks that every save succeeds and that a fresh boot then loads exactly it.
+fn save_and_read_back<O>(
+    mut l: Learner<Learning<O>>,
+    flash: &mut Flash,
+    initial: &Learner<Learning<O>>,
+    saves: usize,
+    case: &str,
+) where
+    O: Optimizer<2> + Persistent + Clone,
+{
+    let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
+    for n in 0..saves {
+        episode(&mut l);
+        let mut s = store(flash);
+        let found = s.load::<Learner<Learning<O>>>(&mut rec, &mut item).err();
+        assert!(
+            matches!(found, None | Some(CheckpointError::Record(_))),
+            "{case}, save {n}: boot {found:?}"
+        );
+        let saved = s.save(&l, &mut rec, &mut item);
+        assert_eq!(saved, Ok(()), "{case}, save {n}");
+        let back = boot(&mut store(flash), initial);
+        assert!(
+            bytes(&back) == bytes(&l),
+            "{case}, save {n}: boot loaded another state than the one saved"
+        );
     }
 }
 
-impl NorFlash for MeteredFlash {
-    const WRITE_SIZE: usize = WORD;
-    const ERASE_SIZE: usize = BIG_PAGE;
-
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
-        let range = self
-            .data
-            .get_mut(from as usize..to as usize)
-            .ok_or(FlashError::Bounds)?;
-        range.fill(0xff);
-        self.erases += ((to - from) as usize / BIG_PAGE) as u64;
-        Ok(())
-    }
-
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let at = offset as usize;
-        let dst = self
-            .data
-            .get_mut(at..at + bytes.len())
-            .ok_or(FlashError::Bounds)?;
-        if dst.iter().any(|&b| b != 0xff) {
-            return Err(FlashError::NotErased);
+/// Images of the whole flash left by something else: random bytes; random words among
+/// erased ones; pages each erased, random, or written part-way (random words, then erased);
+/// and another firmware's checkpoints (another optimizer, slots of two pages at other
+/// offsets) with a random page after them. Fixed seeds.
+fn leftover_images() -> Vec<(String, Vec<u8>)> {
+    use rand_core::RngCore;
+    let mut images = Vec::new();
+    for seed in 0..8u64 {
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+        let mut random = vec![0u8; FLASH];
+        rng.fill_bytes(&mut random);
+        images.push((format!("random bytes (seed {seed})"), random.clone()));
+        let mut words = random.clone();
+        for w in words.chunks_mut(WORD) {
+            if rng.next_u32() % 2 == 0 {
+                w.fill(0xff);
+            }
         }
-        dst.copy_from_slice(bytes);
-        self.written += bytes.len() as u64;
-        Ok(())
+        images.push((format!("random and erased words (seed {seed})"), words));
+        let mut pages = random;
+        for p in pages.chunks_mut(PAGE) {
+            match rng.next_u32() % 3 {
+                0 => p.fill(0xff),
+                1 => {}
+                _ => {
+                    let used = (rng.next_u32() as usize % (PAGE / WORD)) * WORD;
+                    p[used..].fill(0xff);
+                }
+            }
+        }
+        images.push((
+            format!("erased, random and part-written pages (seed {seed})"),
+            pages,
+        ));
+    }
+    // Another firmware: coordinate search checkpoints in slots of two pages from page 1.
+    let mut other = erased(Programming::And);
+    {
+        let config = CoordinateConfig::DEFAULT;
+        let o = CoordinateSearch::try_new(bounds(), Vector::zeros(), config).unwrap();
+        let mut l = learner(o);
+        let slots = [
+            PAGE as u32..3 * PAGE as u32,
+            3 * PAGE as u32..5 * PAGE as u32,
+        ];
+        let mut s = CheckpointStore::try_new(BlockingAsync::new(&mut other), slots).unwrap();
+        let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
+        for _ in 0..7 {
+            episode(&mut l);
+            s.save(&l, &mut rec, &mut item).unwrap();
+        }
+    }
+    let mut image = other.data;
+    Xoshiro128PlusPlus::seed_from_u64(99).fill_bytes(&mut image[5 * PAGE..]);
+    images.push(("another firmware's checkpoints".to_string(), image));
+    images
+}
+
+/// Checks, on each programming rule, a first boot on a flash full of leftover data (the
+/// images of [`leftover_images`]): boot does not fail (nothing found, or another type's
+/// checkpoint refused by name), and each of 4 saves after it returns `Ok` and is what a
+/// fresh boot loads, bit for bit.
+#[test]
+fn leftover_data_at_first_boot_is_cleared_not_trusted() {
+    let o = Cmaes::<2, 4>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
+    let initial = learner(o);
+    let images = leftover_images();
+    for rule in Programming::ALL {
+        for (name, image) in &images {
+            let mut flash = CutFlash::with_image(image.clone(), rule);
+            let case = format!("{}, {name}", rule.name());
+            save_and_read_back(initial.clone(), &mut flash, &initial, 4, &case);
+        }
+        println!(
+            "leftover data, {}: {} images at first boot, 4 saves each, every one read back",
+            rule.name(),
+            images.len()
+        );
     }
 }
+
+/// Checks, on each programming rule: after a run of 12 saves, a stray word programmed into
+/// any erased word of the flash (each in turn) leaves boot on the newest checkpoint or the
+/// one before (a stray word on a page's start marker, or where `sequential-storage` reads the
+/// next item header, spoils the newest slot's map), never anything else, and
+/// each of 3 saves after it returns `Ok` and is what a fresh boot loads, bit for bit.
+#[test]
+fn a_stray_word_in_free_space_never_loses_a_save() {
+    let o = Cmaes::<2, 4>::try_new(bounds(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
+    let initial = learner(o);
+    for rule in Programming::ALL {
+        let r = reference(&initial, EPISODES, rule);
+        let mut flash = r.images[EPISODES - 1].clone();
+        let last = record::load::<Learner<Learning<Cmaes<2, 4>>>>(&r.records[EPISODES]).unwrap();
+        let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
+        store(&mut flash).save(&last, &mut rec, &mut item).unwrap();
+        let (mut words, mut newest) = (0, 0);
+        for at in (0..FLASH).step_by(WORD) {
+            if flash.data[at..at + WORD] != [0xff; WORD] {
+                continue;
+            }
+            let mut stray = flash.clone();
+            stray.poke(at, [0x5a, 0xa5, 0x00, 0xff]);
+            let booted = boot(&mut store(&mut stray), &initial);
+            let found = bytes(&booted);
+            if found == r.records[EPISODES] {
+                newest += 1;
+            } else {
+                assert_eq!(found, r.records[EPISODES - 1], "{}, word {at}", rule.name());
+            }
+            let case = format!("{}, stray word at {at}", rule.name());
+            save_and_read_back(booted, &mut stray, &initial, 3, &case);
+            words += 1;
+        }
+        println!(
+            "stray word, {}: {words} erased words tried in turn; boot kept the newest \
+             checkpoint {newest} times, the one before {} times; 3 saves after each, every \
+             one read back",
+            rule.name(),
+            words - newest
+        );
+    }
+}
+
+/// A common internal-flash page, for the size and wear figures.
+const BIG_PAGE: usize = 4096;
 
 /// Figures for one optimizer inside the AUV adapter.
 struct Figures {
@@ -587,11 +598,7 @@ where
     use host_tests::auv_task;
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(5);
     let slot = (slot_pages * BIG_PAGE) as u32;
-    let mut flash = MeteredFlash {
-        data: vec![0xff; 2 * slot as usize],
-        written: 0,
-        erases: 0,
-    };
+    let mut flash = CutFlash::<BIG_PAGE>::erased(2 * slot as usize, Programming::WriteOnce);
     let (mut rec, mut item) = (vec![0u8; 16 * 1024], [0u8; 1024]);
     let mut last = Vec::new();
     let mut record = 0;
