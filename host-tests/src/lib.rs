@@ -14,6 +14,7 @@ pub mod arm;
 pub mod auv;
 pub mod auv_task;
 pub mod double_integrator;
+pub mod forgery;
 pub mod functions;
 pub mod hopper;
 pub mod hopper_task;

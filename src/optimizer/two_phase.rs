@@ -133,6 +133,27 @@ impl<G: Optimizer<N>, const N: usize> TwoPhase<G, N> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<G: Optimizer<N> + crate::record::Persistent, const N: usize> TwoPhase<G, N> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (a global budget ≥ 1, the local configuration and steps), the
+    /// global optimizer's own, and the local search's own, over the global optimizer's box.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        require(self.global_budget != 0, "global_budget")?;
+        self.local_config.validate()?;
+        require(
+            self.local_steps.iter().all(|s| s.is_finite() && *s > 0.0),
+            "initial_step",
+        )?;
+        self.global.validate()?;
+        if let Some(local) = &self.local {
+            local.check_decoded()?;
+            require(local.bounds() == self.global.bounds(), "local")?;
+        }
+        Ok(())
+    }
+}
+
 impl<G: Optimizer<N>, const N: usize> Optimizer<N> for TwoPhase<G, N> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         match self.local.as_mut() {
