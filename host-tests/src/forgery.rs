@@ -9,8 +9,8 @@
 //! number of steps, checking that every candidate is finite and inside the box and that the
 //! best stays there; [`run_adapter`] runs episodes of control ticks, checking that every
 //! learning or deployed θ lies in the optimizer's box and every action is finite, within
-//! the PD's limit and within the correction envelope of the nominal action. A broken check
-//! or a panic is returned as an error naming the byte and the pattern.
+//! the PD's limit and within the correction envelope of the nominal action. Broken checks
+//! and panics are counted, the first one kept with the byte and the pattern.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -42,6 +42,10 @@ pub struct Forgeries {
     pub loaded: u64,
     /// Steps (ask/tell pairs, or control ticks) the loaded forgeries ran.
     pub steps: u64,
+    /// Loaded forgeries whose run broke a check or panicked.
+    pub violations: u64,
+    /// The first of them: the byte, the pattern and what happened.
+    pub first_violation: Option<String>,
     /// Forgeries refused, by the error `load` returned (the field named, for a state that
     /// decoded but was invalid).
     pub rejected: BTreeMap<String, u64>,
@@ -63,13 +67,18 @@ impl fmt::Display for Forgeries {
         let rejected: u64 = self.rejected.values().sum();
         write!(
             f,
-            "{} forged, {} loaded ({} steps run), {} rejected ({} as invalid states)",
+            "{} forged, {} loaded ({} steps run, {} broke a check), {} rejected ({} as invalid \
+             states)",
             self.forged,
             self.loaded,
             self.steps,
+            self.violations,
             rejected,
             self.invalid()
         )?;
+        if let Some(first) = &self.first_violation {
+            write!(f, "\n    first broken check: {first}")?;
+        }
         for (error, n) in &self.rejected {
             write!(f, "\n    {n:>6}  {error}")?;
         }
@@ -95,13 +104,13 @@ fn forged(record: &[u8], at: usize, bytes: &[u8]) -> Option<Vec<u8>> {
 }
 
 /// Every forgery of `record` (module docs) loaded as `T`; each one that loads is handed to
-/// `run` with an RNG seeded from the forgery's index, and must return the steps it ran.
-/// The first violation `run` reports, or a panic, ends the sweep with an error naming the
-/// byte and the pattern.
+/// `run` with an RNG seeded from the forgery's index, which returns the steps it ran or the
+/// check it saw broken. Broken checks and panics (in `load` or in `run`) are counted, the
+/// first one kept with the byte and the pattern.
 pub fn sweep<T: Persistent>(
     record: &[u8],
     mut run: impl FnMut(T, &mut DriverRng) -> Result<u64, String>,
-) -> Result<Forgeries, String> {
+) -> Forgeries {
     let end = record.len().saturating_sub(4);
     let mut tally = Forgeries::default();
     let mut index = 0u64;
@@ -116,23 +125,31 @@ pub fn sweep<T: Persistent>(
             };
             index += 1;
             tally.forged += 1;
-            let what = || format!("byte {at} of {end} overwritten with {pattern:02x?}");
-            let loaded = catch_unwind(|| record::load::<T>(&bad))
-                .map_err(|_| format!("{}: load panicked", what()))?;
-            match loaded {
-                Ok(value) => {
+            let outcome = match catch_unwind(|| record::load::<T>(&bad)) {
+                Err(_) => Err("load panicked".to_string()),
+                Ok(Err(e)) => {
+                    *tally.rejected.entry(format!("{e:?}")).or_default() += 1;
+                    Ok(0)
+                }
+                Ok(Ok(value)) => {
                     tally.loaded += 1;
                     let mut rng = DriverRng::seed_from_u64(index);
-                    let steps = catch_unwind(AssertUnwindSafe(|| run(value, &mut rng)))
-                        .map_err(|_| format!("{}: panicked while running", what()))?
-                        .map_err(|e| format!("{}: {e}", what()))?;
-                    tally.steps += steps;
+                    catch_unwind(AssertUnwindSafe(|| run(value, &mut rng)))
+                        .unwrap_or_else(|_| Err("panicked while running".to_string()))
                 }
-                Err(e) => *tally.rejected.entry(format!("{e:?}")).or_default() += 1,
+            };
+            match outcome {
+                Ok(steps) => tally.steps += steps,
+                Err(e) => {
+                    tally.violations += 1;
+                    tally.first_violation.get_or_insert_with(|| {
+                        format!("byte {at} of {end} overwritten with {pattern:02x?}: {e}")
+                    });
+                }
             }
         }
     }
-    Ok(tally)
+    tally
 }
 
 /// A uniform draw in [0, 1).

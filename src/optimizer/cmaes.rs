@@ -687,7 +687,9 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
         require_finite(&self.p_sigma, "p_sigma")?;
         require_finite(&self.p_c, "p_c")?;
         require_finite(&self.drawn, "drawn")?;
-        require(!(self.drawn_excess < 0.0), "drawn_excess")?;
+        // NaN is a draw's excess too (a NaN coordinate), ranked as +∞ when told.
+        let excess = self.drawn_excess;
+        require(excess >= 0.0 || excess.is_nan(), "drawn_excess")?;
         require(self.told < L, "told")?;
         let room = if self.config.active {
             L

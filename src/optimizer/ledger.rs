@@ -198,4 +198,24 @@ mod tests {
         assert_eq!(l.evaluations(), 1);
         assert_eq!(l.best().map(|b| b.cost), Some(2.0));
     }
+
+    /// Checks the backstop of `ask`: whatever an algorithm proposes, the candidate handed
+    /// out (and kept pending) is finite and inside the box: NaN maps to the lower bound, ±∞
+    /// and values outside to the nearest face, a point inside is unchanged.
+    #[test]
+    fn handed_out_candidates_are_projected_onto_the_box() {
+        let bounds = Bounds::try_new([-1.0, 0.0].into(), [1.0, 2.0].into()).unwrap();
+        let mut l = Ledger::<2>::new(10);
+        for (proposed, handed) in [
+            ([f32::NAN, 0.5], [-1.0, 0.5]),
+            ([f32::INFINITY, f32::NEG_INFINITY], [1.0, 0.0]),
+            ([-3.0, 2.5], [-1.0, 2.0]),
+            ([0.25, 1.75], [0.25, 1.75]),
+        ] {
+            let theta = l.hand_out(proposed.into(), &bounds);
+            assert_eq!(theta, Vector::from(handed));
+            assert_eq!(l.pending(), Some(&theta));
+            l.accept(1.0).unwrap();
+        }
+    }
 }
