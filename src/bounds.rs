@@ -37,13 +37,20 @@ impl<const N: usize> Bounds<N> {
     /// normalise through it).
     pub fn try_new(lower: Vector<N>, upper: Vector<N>) -> Result<Self, Error> {
         const { assert!(N > 0, "an optimizer needs at least one parameter") };
+        let bounds = Self { lower, upper };
+        bounds.check_decoded()?;
+        Ok(bounds)
+    }
+
+    /// The checks of [`Bounds::try_new`], also run on a box decoded from a record.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
         for i in 0..N {
-            let (lo, hi) = (lower[i], upper[i]);
+            let (lo, hi) = (self.lower[i], self.upper[i]);
             if !(lo.is_finite() && hi.is_finite() && lo < hi && (hi - lo).is_finite()) {
                 return Err(Error::InvalidBounds { index: i });
             }
         }
-        Ok(Self { lower, upper })
+        Ok(())
     }
 
     /// The same interval `[lower, upper]` in every coordinate.

@@ -62,13 +62,22 @@ pub struct SurveyCost {
 impl SurveyCost {
     /// A survey with distance threshold D = `radius` metres (> 0; the paper uses 1 m).
     pub fn try_new(radius: f32) -> Result<Self, Error> {
-        require(radius.is_finite() && radius > 0.0, "radius")?;
-        Ok(Self {
+        let cost = Self {
             radius,
             min_distance: f32::INFINITY,
             time_within: 0.0,
             skipped: 0,
-        })
+        };
+        cost.check_decoded()?;
+        Ok(cost)
+    }
+
+    /// The check of [`SurveyCost::try_new`], plus, for a decoded shaper, running figures
+    /// that are not NaN nor negative (the minimum distance is +∞ before any observation).
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        require(self.radius.is_finite() && self.radius > 0.0, "radius")?;
+        require(self.min_distance >= 0.0, "min_distance")?;
+        require(self.time_within >= 0.0, "time_within")
     }
 
     /// d, the minimum distance so far (∞ before any valid observation).
@@ -136,16 +145,24 @@ pub struct QuadraticCost<const K: usize> {
 impl<const K: usize> QuadraticCost<K> {
     /// Weights q_i ≥ 0, finite.
     pub fn try_new(weights: Vector<K>) -> Result<Self, Error> {
-        require(
-            weights.iter().all(|q| q.is_finite() && *q >= 0.0),
-            "weights",
-        )?;
-        Ok(Self {
+        let cost = Self {
             weights,
             total: 0.0,
             observed: 0,
             skipped: 0,
-        })
+        };
+        cost.check_decoded()?;
+        Ok(cost)
+    }
+
+    /// The check of [`QuadraticCost::try_new`], plus, for a decoded shaper, a running total
+    /// that is not NaN nor negative (+∞ after an overflow is a cost like any other).
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        require(
+            self.weights.iter().all(|q| q.is_finite() && *q >= 0.0),
+            "weights",
+        )?;
+        require(self.total >= 0.0, "total")
     }
 }
 
@@ -285,16 +302,7 @@ pub struct ApexHeightCost {
 impl ApexHeightCost {
     /// Validates `config` (finite, non-negative weights; positive heights).
     pub fn try_new(config: ApexConfig) -> Result<Self, Error> {
-        let finite_nonneg = |v: f32| v.is_finite() && v >= 0.0;
-        require(
-            config.set_height.is_finite() && config.set_height > 0.0,
-            "set_height",
-        )?;
-        require(finite_nonneg(config.min_apex), "min_apex")?;
-        require(finite_nonneg(config.missing_hop_cost), "missing_hop_cost")?;
-        require(finite_nonneg(config.energy_weight), "energy_weight")?;
-        require(finite_nonneg(config.violation_cost), "violation_cost")?;
-        require(finite_nonneg(config.spread_weight), "spread_weight")?;
+        check_apex_config(&config)?;
         let mut cost = Self {
             config,
             previous_velocity: 0.0,
@@ -309,6 +317,21 @@ impl ApexHeightCost {
         };
         cost.reset();
         Ok(cost)
+    }
+
+    /// The checks of [`ApexHeightCost::try_new`], plus, for a decoded shaper, the last
+    /// vertical velocity finite and the running figures not NaN (the sums not negative).
+    #[cfg(feature = "serde")]
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        check_apex_config(&self.config)?;
+        require(self.previous_velocity.is_finite(), "previous_velocity")?;
+        require(self.squared_deviation >= 0.0, "squared_deviation")?;
+        require(
+            !(self.apex_min.is_nan() || self.apex_max.is_nan()),
+            "apex_min",
+        )?;
+        require(self.energy >= 0.0, "energy")?;
+        require(self.duration >= 0.0, "duration")
     }
 
     /// Apexes detected so far.
@@ -330,6 +353,20 @@ impl ApexHeightCost {
             self.apex_max - self.apex_min
         }
     }
+}
+
+/// Finite, non-negative weights and heights, a positive set height.
+fn check_apex_config(config: &ApexConfig) -> Result<(), Error> {
+    let finite_nonneg = |v: f32| v.is_finite() && v >= 0.0;
+    require(
+        config.set_height.is_finite() && config.set_height > 0.0,
+        "set_height",
+    )?;
+    require(finite_nonneg(config.min_apex), "min_apex")?;
+    require(finite_nonneg(config.missing_hop_cost), "missing_hop_cost")?;
+    require(finite_nonneg(config.energy_weight), "energy_weight")?;
+    require(finite_nonneg(config.violation_cost), "violation_cost")?;
+    require(finite_nonneg(config.spread_weight), "spread_weight")
 }
 
 impl Shaper for ApexHeightCost {

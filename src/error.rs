@@ -60,6 +60,20 @@ pub(crate) fn require(valid: bool, parameter: &'static str) -> Result<(), Error>
     }
 }
 
+/// `Ok` when every value is finite, else [`Error::NonFinite`] naming `field`: the
+/// commonest check of a decoded state.
+#[cfg(feature = "serde")]
+pub(crate) fn require_finite<'a>(
+    values: impl IntoIterator<Item = &'a f32>,
+    field: &'static str,
+) -> Result<(), Error> {
+    if values.into_iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::NonFinite(field))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

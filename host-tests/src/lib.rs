@@ -15,6 +15,7 @@ pub mod auv;
 pub mod auv_task;
 pub mod cut_flash;
 pub mod double_integrator;
+pub mod forgery;
 pub mod functions;
 pub mod hopper;
 pub mod hopper_task;

@@ -4,14 +4,30 @@
 //! checks, after every operation, the contract listed in the driver's docs, and prints what
 //! it exercised. `a_planted_bug_is_caught` shows the driver failing on an optimizer with a
 //! deliberate defect.
+//!
+//! The `forged_*` tests run the forged-record sweep ([`host_tests::forgery`]) on every
+//! persistent optimizer and on an adapter: a record taken mid-run, every byte overwritten in
+//! turn (0x00, 0xFF, 0x7F, +1; NaN and ±∞ over every four bytes), the checksum recomputed;
+//! what loads runs 1,000 asks and tells (5,000 in release, on records taken at three points
+//! of the run) without a panic, a non-finite θ, a θ outside the box or an action outside the
+//! envelope. Each prints how many forgeries loaded and why the others were refused.
 
-use ctrl_adapt::optimizer::{
-    Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos, Replacement, Rockstar,
-    RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
+use ctrl_adapt::controller::{
+    Adapter, AdapterConfig, CorrectedPd, LinearPolicy, Pd, StateFeatures,
 };
+use ctrl_adapt::cost::QuadraticCost;
+use ctrl_adapt::optimizer::{
+    AnyOptimizer, Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch,
+    CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos,
+    Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase,
+    Vector, Weighting,
+};
+use ctrl_adapt::record::Persistent;
 use host_tests::adversarial::{
-    DriverRng, Tally, cap, count, drive, drive_adapter, field, point_in,
+    ACTION_LIMIT, DriverRng, ENVELOPE, Tally, cap, count, drive, drive_adapter, field, point_in,
+};
+use host_tests::forgery::{
+    self, ForgedAdapter, Forgeries, adapter_mid_run, mid_run, run_adapter, run_optimizer,
 };
 use rand_core::RngCore;
 
@@ -372,5 +388,169 @@ fn a_planted_bug_is_caught() {
             }
             Ok(tally) => panic!("planted bug {bug} not caught: {tally}"),
         }
+    }
+}
+
+/// Loaded forgeries run this many asks and tells (adapters: ticks, in episodes of 10).
+const FORGED_STEPS: u64 = if cfg!(debug_assertions) { 1_000 } else { 5_000 };
+
+/// The steps after which the record to forge is taken (one more ask leaves a candidate
+/// pending): one in debug builds, three in release.
+const CUTS: &[usize] = if cfg!(debug_assertions) {
+    &[30]
+} else {
+    &[7, 30, 100]
+};
+
+/// Sweeps the forgeries of `o`'s record after each of [`CUTS`] (every state on the way must
+/// load back as itself) and runs each forgery that loads for [`FORGED_STEPS`]: no panic, no
+/// θ outside the box or non-finite (see [`forged_report`]).
+fn forge<const N: usize, O: Optimizer<N> + Persistent + Clone>(name: &str, o: O) {
+    for &cut in CUTS {
+        let result = mid_run(o.clone(), cut).map(|record| {
+            forgery::sweep::<O>(&record, |o, rng| run_optimizer(o, rng, FORGED_STEPS))
+        });
+        forged_report(&format!("{name} after {cut} steps"), result);
+    }
+}
+
+/// Prints the tally; no loaded forgery may break a check, and some must load and run and
+/// some be refused as invalid states (else the sweep tested nothing).
+fn forged_report(name: &str, result: Result<Forgeries, String>) {
+    match result {
+        Ok(tally) => {
+            println!("{name}: {tally}");
+            assert_eq!(tally.violations, 0, "{name}: {tally}");
+            assert!(tally.loaded > 0 && tally.steps > 0 && tally.invalid() > 0);
+        }
+        Err(e) => panic!("{name}: {e}"),
+    }
+}
+
+/// A coordinate search that keeps going for about a thousand steps on the noisy sphere
+/// before its steps fall below the tolerance (with the default 1e-4 it stops after a few
+/// dozen, and the loaded forgeries would run little).
+const FINE_SEARCH: CoordinateConfig = CoordinateConfig {
+    initial_step: 0.3,
+    tolerance: 1e-30,
+    ..CoordinateConfig::DEFAULT
+};
+
+fn unit_box() -> Bounds<2> {
+    Bounds::uniform(-1.0, 1.0).unwrap()
+}
+
+#[test]
+fn forged_coordinate_search() {
+    let s = CoordinateSearch::<2>::try_new(unit_box(), Vector::zeros(), FINE_SEARCH).unwrap();
+    forge("CoordinateSearch<2>", s);
+}
+
+#[test]
+fn forged_controlled_random_search() {
+    let s = ControlledRandomSearch::<2, 8>::try_new(unit_box(), CrsConfig::DEFAULT).unwrap();
+    forge("ControlledRandomSearch<2, 8>", s);
+}
+
+#[test]
+fn forged_two_phase() {
+    // The hand-over after 12 evaluations: the record holds both phases.
+    let global = ControlledRandomSearch::<2, 8>::try_new(unit_box(), CrsConfig::DEFAULT).unwrap();
+    let s = TwoPhase::try_new(global, 12, FINE_SEARCH).unwrap();
+    forge("TwoPhase<ControlledRandomSearch<2, 8>>", s);
+}
+
+#[test]
+fn forged_sracos() {
+    // With value suppression re-evaluating often, so that records hold its round.
+    let config = SracosConfig {
+        suppression: Some(Suppression {
+            non_update_allowed: 2,
+            resample_times: 3,
+            balance_rate: 0.5,
+        }),
+        ..SracosConfig::DEFAULT
+    };
+    forge(
+        "Sracos<2, 2, 6>",
+        Sracos::<2, 2, 6>::try_new(unit_box(), config).unwrap(),
+    );
+}
+
+#[test]
+fn forged_racos() {
+    let s = Racos::<2, 2, 5>::try_new(unit_box(), SracosConfig::DEFAULT).unwrap();
+    forge("Racos<2, 2, 5>", s);
+}
+
+#[test]
+fn forged_diagonal_cem() {
+    let s =
+        DiagonalCem::<2, 6, 3>::try_new(unit_box(), Vector::zeros(), CemConfig::DEFAULT).unwrap();
+    forge("DiagonalCem<2, 6, 3>", s);
+}
+
+#[test]
+fn forged_cmaes() {
+    let config = CmaesConfig {
+        active: true,
+        ..CmaesConfig::DEFAULT
+    };
+    let s = Cmaes::<2, 4>::try_new(unit_box(), Vector::zeros(), config).unwrap();
+    forge("Cmaes<2, 4>", s);
+}
+
+#[test]
+fn forged_rockstar() {
+    let config = RockstarConfig {
+        initial_samples: 4,
+        ..RockstarConfig::DEFAULT
+    };
+    let s = Rockstar::<2, 8>::try_new(unit_box(), Vector::zeros(), config).unwrap();
+    forge("Rockstar<2, 8>", s);
+}
+
+#[test]
+fn forged_any_optimizer() {
+    let s: AnyOptimizer<2, 4, 2, 8> =
+        DiagonalCem::try_new(unit_box(), Vector::zeros(), CemConfig::DEFAULT)
+            .unwrap()
+            .into();
+    forge("AnyOptimizer<2, 4, 2, 8>::Cem", s);
+}
+
+#[test]
+fn forged_adapter() {
+    let pd = Pd::<1>::try_new(Vector::repeat(3.0), Vector::repeat(0.7))
+        .and_then(|pd| pd.with_limit(Vector::repeat(ACTION_LIMIT)))
+        .unwrap();
+    let policy =
+        LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(ENVELOPE)).unwrap();
+    let config = AdapterConfig {
+        dt: 0.1,
+        failure_cost: 100.0,
+        max_faulty_ticks: 0,
+        learning_episodes: 1_000,
+    };
+    let cmaes = Cmaes::<2, 4>::try_new(unit_box(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
+    let shaper = QuadraticCost::try_new(Vector::repeat(1.0)).unwrap();
+    let adapter: ForgedAdapter<Cmaes<2, 4>> = Adapter::try_new(
+        cmaes,
+        CorrectedPd::new(pd, policy),
+        shaper,
+        config,
+        Vector::zeros(),
+    )
+    .unwrap();
+    for &cut in CUTS {
+        let result = adapter_mid_run(adapter.clone(), cut).map(|record| {
+            forgery::sweep::<ForgedAdapter<Cmaes<2, 4>>>(&record, |a, rng| {
+                run_adapter(a, rng, FORGED_STEPS / 10, 10)
+            })
+        });
+        forged_report(
+            &format!("Adapter<Cmaes<2, 4>> after {cut} episodes"),
+            result,
+        );
     }
 }

@@ -53,6 +53,11 @@ struct Learner<Ad> {
 
 impl<Ad: Persistent> Persistent for Learner<Ad> {
     const SHAPE: Shape = Shape::new(*b"LRNR", &[]).nest(Ad::SHAPE);
+
+    /// The adapter's checks; the RNG and the episode counter can hold any value.
+    fn validate(&self) -> Result<(), ctrl_adapt::Error> {
+        self.adapter.validate()
+    }
 }
 
 const DT: f32 = 0.05;

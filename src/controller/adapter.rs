@@ -489,6 +489,56 @@ where
     }
 }
 
+#[cfg(feature = "serde")]
+impl<C, Sh, const P: usize, const S: usize, const A: usize> EpisodeRunner<C, Sh, P, S, A>
+where
+    C: crate::record::Persistent,
+    Sh: crate::record::Persistent,
+{
+    /// The checks of a decoded runner ([`Persistent::validate`](crate::record::Persistent)):
+    /// the configuration, the controller's and the shaper's own, and a running episode's θ
+    /// finite.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        self.config.validate()?;
+        self.controller.validate()?;
+        self.shaper.validate()?;
+        match &self.episode {
+            Some(e) if e.theta.iter().any(|v| !v.is_finite()) => Err(Error::NonFinite("episode")),
+            _ => Ok(()),
+        }
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize> Adapter<O, C, Sh, P, S, A>
+where
+    O: Optimizer<P> + crate::record::Persistent,
+    C: crate::record::Persistent,
+    Sh: crate::record::Persistent,
+{
+    /// The checks of a decoded adapter ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (the runner's and the optimizer's own checks, the initial θ inside
+    /// the optimizer's box) and the envelope's: a running episode's θ inside the box (but
+    /// in [`Mode::Nominal`], which runs no θ), and a learning episode only in
+    /// [`Mode::Learn`], running the optimizer's pending candidate (the one it will be told).
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        self.runner.check_decoded()?;
+        self.optimizer.validate()?;
+        let bounds = self.optimizer.bounds();
+        bounds.check(&self.initial, "initial")?;
+        if let Some(e) = &self.runner.episode {
+            if e.mode != Mode::Nominal {
+                bounds.check(&e.theta, "episode")?;
+            }
+            if e.mode == Mode::Learn {
+                let told_next = self.optimizer.pending() == Some(&e.theta);
+                require(self.mode == Mode::Learn && told_next, "episode")?;
+            }
+        }
+        Ok(())
+    }
+}
+
 fn finite_or<const A: usize>(action: Vector<A>, safe: impl FnOnce() -> Vector<A>) -> Vector<A> {
     if action.iter().all(|v| v.is_finite()) {
         action

@@ -62,8 +62,7 @@ impl<const A: usize> Pd<A> {
     /// Gains per axis; each must be finite and ≥ 0. No output limit, derivative on
     /// measurement for [`Pd::update`].
     pub fn try_new(kp: Vector<A>, kd: Vector<A>) -> Result<Self, Error> {
-        require(kp.iter().all(|k| k.is_finite() && *k >= 0.0), "kp")?;
-        require(kd.iter().all(|k| k.is_finite() && *k >= 0.0), "kd")?;
+        check_gains(&kp, &kd)?;
         Ok(Self {
             kp,
             kd,
@@ -75,9 +74,18 @@ impl<const A: usize> Pd<A> {
 
     /// Limits |u_i| to `limit[i]` (> 0; `f32::INFINITY` for no limit on that axis).
     pub fn with_limit(mut self, limit: Vector<A>) -> Result<Self, Error> {
-        require(limit.iter().all(|l| *l > 0.0), "limit")?;
+        check_limit(&limit)?;
         self.limit = limit;
         Ok(self)
+    }
+
+    /// The checks of [`Pd::try_new`] and [`Pd::with_limit`], run on a PD decoded from a
+    /// record ([`Persistent::validate`](crate::record::Persistent)). The previous sample
+    /// is not checked: any measurement, NaN included, may have been the last one.
+    #[cfg(feature = "serde")]
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        check_gains(&self.kp, &self.kd)?;
+        check_limit(&self.limit)
     }
 
     /// Chooses what [`Pd::update`] differentiates.
@@ -151,6 +159,17 @@ impl<const A: usize> Pd<A> {
     pub fn reset(&mut self) {
         self.previous = None;
     }
+}
+
+/// Gains finite and ≥ 0.
+fn check_gains<const A: usize>(kp: &Vector<A>, kd: &Vector<A>) -> Result<(), Error> {
+    require(kp.iter().all(|k| k.is_finite() && *k >= 0.0), "kp")?;
+    require(kd.iter().all(|k| k.is_finite() && *k >= 0.0), "kd")
+}
+
+/// Output limits > 0 (+∞ for none).
+fn check_limit<const A: usize>(limit: &Vector<A>) -> Result<(), Error> {
+    require(limit.iter().all(|l| *l > 0.0), "limit")
 }
 
 #[cfg(test)]

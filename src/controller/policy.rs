@@ -73,8 +73,14 @@ impl<const S: usize> StateFeatures<S> {
 
     /// φ = scale ∘ state; every scale must be finite.
     pub fn scaled(scale: Vector<S>) -> Result<Self, Error> {
-        require(scale.iter().all(|s| s.is_finite()), "scale")?;
-        Ok(Self { scale })
+        let features = Self { scale };
+        features.check_decoded()?;
+        Ok(features)
+    }
+
+    /// The checks of [`StateFeatures::scaled`], also run on decoded features.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        require(self.scale.iter().all(|s| s.is_finite()), "scale")
     }
 }
 
@@ -108,19 +114,15 @@ impl<const K: usize> PeriodicRbf<K> {
     /// standard deviation (1/√h rad) is half the spacing between kernels (2π/K rad).
     pub fn try_new(period: f32, min_period: f32, max_period: f32) -> Result<Self, Error> {
         const { assert!(K > 0, "at least one kernel") };
-        require(min_period.is_finite() && min_period > 0.0, "min_period")?;
-        require(
-            max_period.is_finite() && max_period >= min_period,
-            "max_period",
-        )?;
-        require(period >= min_period && period <= max_period, "period")?;
         let k = K as f32 / core::f32::consts::PI;
-        Ok(Self {
+        let kernels = Self {
             period,
             min_period,
             max_period,
             width: k * k,
-        })
+        };
+        kernels.check_decoded()?;
+        Ok(kernels)
     }
 
     /// Sets the kernel width h (> 0, finite).
@@ -128,6 +130,19 @@ impl<const K: usize> PeriodicRbf<K> {
         require(width.is_finite() && width > 0.0, "width")?;
         self.width = width;
         Ok(self)
+    }
+
+    /// The checks of [`PeriodicRbf::try_new`] and [`PeriodicRbf::with_width`], also run on
+    /// decoded kernels.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        let (period, min_period, max_period) = (self.period, self.min_period, self.max_period);
+        require(min_period.is_finite() && min_period > 0.0, "min_period")?;
+        require(
+            max_period.is_finite() && max_period >= min_period,
+            "max_period",
+        )?;
+        require(period >= min_period && period <= max_period, "period")?;
+        require(self.width.is_finite() && self.width > 0.0, "width")
     }
 
     /// The period T for a learned offset (NaN offsets give the nominal period).
@@ -191,10 +206,7 @@ pub struct LinearPolicy<const C: usize, const F: usize, M> {
 impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
     /// A policy over `map` whose correction a stays within ±`envelope[a]` (> 0, finite).
     pub fn try_new(map: M, envelope: Vector<C>) -> Result<Self, Error> {
-        require(
-            envelope.iter().all(|e| e.is_finite() && *e > 0.0),
-            "envelope",
-        )?;
+        check_envelope(&envelope)?;
         Ok(Self { map, envelope })
     }
 
@@ -261,6 +273,24 @@ impl<const C: usize, const F: usize, M> LinearPolicy<C, F, M> {
     }
 }
 
+/// Every bound of the correction envelope finite and > 0.
+fn check_envelope<const C: usize>(envelope: &Vector<C>) -> Result<(), Error> {
+    require(
+        envelope.iter().all(|e| e.is_finite() && *e > 0.0),
+        "envelope",
+    )
+}
+
+#[cfg(feature = "serde")]
+impl<const C: usize, const F: usize, M: crate::record::Persistent> LinearPolicy<C, F, M> {
+    /// The checks of [`LinearPolicy::try_new`] and of the feature map, also run on a
+    /// decoded policy ([`Persistent::validate`](crate::record::Persistent)).
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        check_envelope(&self.envelope)?;
+        self.map.validate()
+    }
+}
+
 /// A PD on A axes whose output is corrected: u = sat(sat(k_p e − k_d ẏ) + c), the AUV policy.
 ///
 /// State layout (S = 2A): [error = setpoint − measurement (A) | measured rate ẏ (A)]; the PD
@@ -324,6 +354,18 @@ where
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const A: usize, const S: usize, const F: usize, const P: usize, M> CorrectedPd<A, S, F, P, M>
+where
+    M: crate::record::Persistent,
+{
+    /// The checks of the PD and of the policy, run on a decoded controller.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        self.pd.check_decoded()?;
+        self.policy.check_decoded()
+    }
+}
+
 impl<const A: usize, const S: usize, const F: usize, const P: usize, M> Controller<P, S, A>
     for CorrectedPd<A, S, F, P, M>
 where
@@ -373,8 +415,7 @@ impl<const K: usize, const P: usize> PeriodicPd<K, P> {
         policy: LinearPolicy<3, K, PeriodicRbf<K>>,
     ) -> Result<Self, Error> {
         const { assert!(P == 3 * K + 1, "θ = [W (3×K) | period offset]") };
-        require(knee_weights.iter().all(|w| w.is_finite()), "knee_weights")?;
-        require(hip_gain.is_finite() && hip_offset.is_finite(), "hip")?;
+        check_reference(&knee_weights, hip_gain, hip_offset)?;
         Ok(Self {
             pd,
             knee_weights,
@@ -382,6 +423,15 @@ impl<const K: usize, const P: usize> PeriodicPd<K, P> {
             hip_offset,
             policy,
         })
+    }
+
+    /// The checks of [`PeriodicPd::try_new`], of the PD and of the policy, run on a decoded
+    /// controller.
+    #[cfg(feature = "serde")]
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        check_reference(&self.knee_weights, self.hip_gain, self.hip_offset)?;
+        self.pd.check_decoded()?;
+        self.policy.check_decoded()
     }
 
     /// The correction policy (its map holds the nominal period).
@@ -411,6 +461,16 @@ impl<const K: usize, const P: usize> PeriodicPd<K, P> {
             &(xdot_d - xdot),
         )
     }
+}
+
+/// The nominal knee weights and the hip's gain and offset finite.
+fn check_reference<const K: usize>(
+    knee_weights: &Vector<K>,
+    hip_gain: f32,
+    hip_offset: f32,
+) -> Result<(), Error> {
+    require(knee_weights.iter().all(|w| w.is_finite()), "knee_weights")?;
+    require(hip_gain.is_finite() && hip_offset.is_finite(), "hip")
 }
 
 impl<const K: usize, const P: usize> Controller<P, 4, 2> for PeriodicPd<K, P> {

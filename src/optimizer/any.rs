@@ -110,6 +110,19 @@ macro_rules! any_optimizer {
             crate::forward_optimizer!($($variant),+);
         }
 
+        #[cfg(feature = "serde")]
+        impl<const N: usize, const L: usize, const E: usize, const M: usize>
+            AnyOptimizer<N, L, E, M>
+        {
+            /// The checks of the variant's optimizer
+            /// ([`Persistent::validate`](crate::record::Persistent)).
+            pub(crate) fn check_decoded(&self) -> Result<(), crate::Error> {
+                match self {
+                    $(Self::$variant(o) => crate::record::Persistent::validate(o),)+
+                }
+            }
+        }
+
         $(
             impl<const N: usize, const L: usize, const E: usize, const M: usize> From<$ty>
                 for AnyOptimizer<N, L, E, M>

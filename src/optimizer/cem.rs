@@ -452,6 +452,51 @@ impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize, const K: usize, const E: usize> DiagonalCem<N, K, E> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (box, configuration, the elite count it resolves to, a mean inside
+    /// the box, finite variances within the limits) and the batch's: the deviations the
+    /// square roots of the variances, fewer than K samples told, as many elites as the
+    /// batch has kept so far (each inside the box, of finite cost), and J_max of the batch
+    /// finite (−∞ before its first cost).
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        self.bounds.check_decoded()?;
+        self.config.validate::<E>()?;
+        require(
+            self.elite_count == self.config.elite.unwrap_or(E),
+            "elite_count",
+        )?;
+        self.bounds.check(&self.mean, "mean")?;
+        require(
+            self.variances
+                .iter()
+                .all(|&v| v.is_finite() && self.config.within_limits(v)),
+            "variances",
+        )?;
+        require(
+            self.deviations == self.variances.map(libm::sqrtf),
+            "deviations",
+        )?;
+        require(self.told < K, "told")?;
+        require(self.elite.len() == self.told.min(self.elite_count), "elite")?;
+        for sample in &self.elite {
+            self.bounds.check(&sample.theta, "elite")?;
+            require(
+                sample.cost.is_finite() && sample.cost <= self.worst,
+                "elite",
+            )?;
+        }
+        let worst_ok = if self.told == 0 {
+            self.worst == f32::NEG_INFINITY
+        } else {
+            self.worst.is_finite()
+        };
+        require(worst_ok, "worst")?;
+        self.ledger.check_decoded(&self.bounds)
+    }
+}
+
 impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCem<N, K, E> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
@@ -462,7 +507,7 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
         } else {
             self.sample(rng)
         };
-        Ok(self.ledger.hand_out(theta))
+        Ok(self.ledger.hand_out(theta, &self.bounds))
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {

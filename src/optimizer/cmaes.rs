@@ -660,6 +660,51 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize, const L: usize> Cmaes<N, L> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (configuration, box, the strategy constants and the unit map that
+    /// follow from them) and the distribution's: a finite mean, σ finite in (0, max_sigma],
+    /// C, B, the paths and the pending draw finite, D finite and positive, the draw's excess
+    /// not negative, fewer than λ costs told, and as many kept samples as told (up to μ, or
+    /// λ when active), none with a finite-less z or a NaN rank.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        use crate::error::require_finite;
+        self.config.validate()?;
+        let bounds = &self.unit.bounds;
+        bounds.check_decoded()?;
+        require(self.unit == UnitMap::new(*bounds), "unit")?;
+        require(self.constants == Constants::new(N), "constants")?;
+        require_finite(&self.mean, "mean")?;
+        require(
+            self.sigma.is_finite() && self.sigma > 0.0 && self.sigma <= self.config.max_sigma,
+            "sigma",
+        )?;
+        require_finite(self.covariance.iter(), "covariance")?;
+        require_finite(self.basis.iter(), "basis")?;
+        require_finite(&self.scales, "scales")?;
+        require(self.scales.iter().all(|d| *d > 0.0), "scales")?;
+        require_finite(&self.p_sigma, "p_sigma")?;
+        require_finite(&self.p_c, "p_c")?;
+        require_finite(&self.drawn, "drawn")?;
+        // NaN is a draw's excess too (a NaN coordinate), ranked as +∞ when told.
+        let excess = self.drawn_excess;
+        require(excess >= 0.0 || excess.is_nan(), "drawn_excess")?;
+        require(self.told < L, "told")?;
+        let room = if self.config.active {
+            L
+        } else {
+            self.constants.mu
+        };
+        require(self.elite.len() == self.told.min(room), "elite")?;
+        for sample in &self.elite {
+            require_finite(&sample.z, "elite")?;
+            require(!sample.rank_cost.is_nan(), "elite")?;
+        }
+        self.ledger.check_decoded(bounds)
+    }
+}
+
 impl<const N: usize, const L: usize> Optimizer<N> for Cmaes<N, L> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
@@ -672,7 +717,7 @@ impl<const N: usize, const L: usize> Optimizer<N> for Cmaes<N, L> {
         self.drawn = z;
         self.drawn_excess = (x - projected).norm_squared();
         let theta = self.unit.theta_of(&projected);
-        Ok(self.ledger.hand_out(theta))
+        Ok(self.ledger.hand_out(theta, &self.unit.bounds))
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {

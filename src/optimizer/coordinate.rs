@@ -379,12 +379,48 @@ impl<const N: usize> CoordinateSearch<N> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize> CoordinateSearch<N> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (box, configuration, finite positive steps) and the state
+    /// machine's: the line-search origin and the incumbent finite and inside the box, their
+    /// costs finite once θ⁰ has been told, a direction index below 2N, finite non-negative
+    /// trial steps, and `Done` exactly when the search has stopped.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        use crate::error::require_finite;
+        self.bounds.check_decoded()?;
+        self.config.validate()?;
+        require_finite(&self.steps_up, "steps_up")?;
+        require(self.steps_up.iter().all(|s| *s > 0.0), "steps_up")?;
+        require_finite(&self.steps_down, "steps_down")?;
+        require(self.steps_down.iter().all(|s| *s > 0.0), "steps_down")?;
+        self.bounds.check(&self.origin, "origin")?;
+        self.bounds.check(&self.current, "current")?;
+        if self.phase != Phase::Start {
+            require_finite([&self.origin_cost, &self.current_cost], "current_cost")?;
+        }
+        require(self.direction < 2 * N, "direction")?;
+        let step_ok = |s: f32| s.is_finite() && s >= 0.0;
+        let phase_ok = match self.phase {
+            Phase::Start | Phase::Done => true,
+            Phase::Probe { step } => step_ok(step),
+            Phase::Expand { accepted, step } => step_ok(accepted) && step_ok(step),
+        };
+        require(phase_ok, "phase")?;
+        require(
+            (self.phase == Phase::Done) == (self.ledger.status() != Status::Running),
+            "phase",
+        )?;
+        self.ledger.check_decoded(&self.bounds)
+    }
+}
+
 impl<const N: usize> Optimizer<N> for CoordinateSearch<N> {
     fn ask<R: RngCore + ?Sized>(&mut self, _rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
-        Ok(self.ledger.hand_out(self.candidate()))
+        Ok(self.ledger.hand_out(self.candidate(), &self.bounds))
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {

@@ -239,13 +239,49 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (box, configuration) and the set's: as many costs as points, every
+    /// point finite and inside the box, every cost finite, the halved initial spread finite
+    /// and ≥ 0, the extremes of a full set a worst index within it with J_max its cost and
+    /// J_min ≤ J_max, and `order` a permutation of 0..M.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        use crate::error::require_finite;
+        self.bounds.check_decoded()?;
+        self.config.validate()?;
+        require(self.points.len() == self.costs.len(), "costs")?;
+        for p in &self.points {
+            self.bounds.check(p, "points")?;
+        }
+        require_finite(&self.costs, "costs")?;
+        require_finite([&self.initial_spread], "initial_spread")?;
+        require(self.initial_spread >= 0.0, "initial_spread")?;
+        if self.points.is_full() {
+            let (worst, j_max, j_min) = self.extremes;
+            require(self.costs.get(worst) == Some(&j_max), "extremes")?;
+            require(j_min.is_finite() && j_min <= j_max, "extremes")?;
+        }
+        let mut seen = [false; M];
+        for &i in &self.order {
+            match seen.get_mut(usize::from(i)) {
+                Some(s) if !*s => *s = true,
+                _ => return Err(Error::InvalidParameter("order")),
+            }
+        }
+        self.ledger.check_decoded(&self.bounds)
+    }
+}
+
 impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, M> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
         if !self.points.is_full() {
-            return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
+            return Ok(self
+                .ledger
+                .hand_out(self.bounds.sample_uniform(rng), &self.bounds));
         }
         let (_, j_max, j_min) = self.extremes;
         let mut candidate = self.trial(rng, j_max, j_min);
@@ -254,15 +290,15 @@ impl<const N: usize, const M: usize> Optimizer<N> for ControlledRandomSearch<N, 
             if candidate.iter().any(|v| !v.is_finite()) {
                 // Degenerate weights (a set of equal costs whose spread then grew from
                 // zero): no redraw can help; sample the box instead of clamping NaN.
-                return Ok(self.ledger.hand_out(self.bounds.sample_uniform(rng)));
+                return Ok(self
+                    .ledger
+                    .hand_out(self.bounds.sample_uniform(rng), &self.bounds));
             }
             candidate = self.trial(rng, j_max, j_min);
             redraws += 1;
         }
-        if !self.bounds.contains(&candidate) {
-            candidate = self.bounds.clamp(&candidate);
-        }
-        Ok(self.ledger.hand_out(candidate))
+        // Still outside after the redraws: the ledger projects it onto the box.
+        Ok(self.ledger.hand_out(candidate, &self.bounds))
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {

@@ -3,6 +3,7 @@
 //! the tell epilogue written once.
 
 use super::{Best, Status};
+use crate::bounds::Bounds;
 use crate::error::Error;
 use crate::vector::Vector;
 
@@ -93,14 +94,15 @@ impl<const N: usize> Ledger<N> {
         self.status = status;
     }
 
-    /// Hands out `theta`, or, when the search has no candidate left to propose (`None`),
-    /// stops it as converged and answers [`Error::Stopped`].
+    /// Hands out `theta` (see [`Ledger::hand_out`]), or, when the search has no candidate
+    /// left to propose (`None`), stops it as converged and answers [`Error::Stopped`].
     pub(crate) fn hand_out_or_stop(
         &mut self,
         theta: Option<Vector<N>>,
+        bounds: &Bounds<N>,
     ) -> Result<Vector<N>, Error> {
         match theta {
-            Some(theta) => Ok(self.hand_out(theta)),
+            Some(theta) => Ok(self.hand_out(theta, bounds)),
             None => {
                 self.stop(Status::Converged);
                 Err(Error::Stopped)
@@ -108,10 +110,40 @@ impl<const N: usize> Ledger<N> {
         }
     }
 
-    /// Marks `theta` as handed out.
-    pub(crate) fn hand_out(&mut self, theta: Vector<N>) -> Vector<N> {
+    /// Marks `theta`, projected onto `bounds`, as handed out and returns it.
+    ///
+    /// Every algorithm already proposes inside the box, so the projection changes nothing
+    /// there (N comparisons per ask). It is the backstop of the contract "`ask` returns a
+    /// finite θ inside the box": whatever state an optimizer is in (a record forged past
+    /// [`Persistent::validate`](crate::record::Persistent::validate), a defect), no θ outside
+    /// the box and no NaN reaches the plant (a NaN coordinate becomes the lower bound). It
+    /// projects rather than returns an error because an error would stop learning for good
+    /// (a state that proposes NaN once proposes it again) while the projected θ is as safe
+    /// as any candidate; and it lives here, in the one place every `ask` passes through.
+    pub(crate) fn hand_out(&mut self, theta: Vector<N>, bounds: &Bounds<N>) -> Vector<N> {
+        let theta = bounds.clamp(&theta);
         self.pending = Some(theta);
         theta
+    }
+
+    /// The checks of a decoded ledger against the box of its optimizer: a pending
+    /// candidate and the best θ finite and inside the box, the best cost finite, a budget of
+    /// at least one evaluation, and a running search that has not used it up.
+    #[cfg(feature = "serde")]
+    pub(crate) fn check_decoded(&self, bounds: &Bounds<N>) -> Result<(), Error> {
+        if let Some(pending) = &self.pending {
+            bounds.check(pending, "pending")?;
+        }
+        if let Some(best) = &self.best {
+            bounds.check(&best.theta, "best")?;
+            crate::error::require_finite([&best.cost], "best")?;
+        }
+        crate::error::require(self.budget != 0, "max_evaluations")?;
+        crate::error::require(
+            self.status != Status::Running || self.evaluations < self.budget,
+            "evaluations",
+        )?;
+        crate::error::require(self.best.is_some() == (self.evaluations > 0), "evaluations")
     }
 
     /// Checks a `tell` before anything is changed; on success takes the pending candidate,
@@ -154,7 +186,10 @@ mod tests {
     fn ledger_rejects_without_change() {
         let mut l = Ledger::<2>::new(3);
         assert_eq!(l.accept(1.0), Err(Error::NoPendingAsk));
-        l.hand_out(Vector::from([0.5, 0.5]));
+        l.hand_out(
+            Vector::from([0.5, 0.5]),
+            &Bounds::uniform(0.0, 1.0).unwrap(),
+        );
         let before = l;
         assert_eq!(l.accept(f32::NAN), Err(Error::NonFinite("cost")));
         assert_eq!(l.accept(f32::NEG_INFINITY), Err(Error::NonFinite("cost")));
@@ -162,5 +197,25 @@ mod tests {
         assert!(l.accept(2.0).is_ok());
         assert_eq!(l.evaluations(), 1);
         assert_eq!(l.best().map(|b| b.cost), Some(2.0));
+    }
+
+    /// Checks the backstop of `ask`: whatever an algorithm proposes, the candidate handed
+    /// out (and kept pending) is finite and inside the box: NaN maps to the lower bound, ±∞
+    /// and values outside to the nearest face, a point inside is unchanged.
+    #[test]
+    fn handed_out_candidates_are_projected_onto_the_box() {
+        let bounds = Bounds::try_new([-1.0, 0.0].into(), [1.0, 2.0].into()).unwrap();
+        let mut l = Ledger::<2>::new(10);
+        for (proposed, handed) in [
+            ([f32::NAN, 0.5], [-1.0, 0.5]),
+            ([f32::INFINITY, f32::NEG_INFINITY], [1.0, 0.0]),
+            ([-3.0, 2.5], [-1.0, 2.0]),
+            ([0.25, 1.75], [0.25, 1.75]),
+        ] {
+            let theta = l.hand_out(proposed.into(), &bounds);
+            assert_eq!(theta, Vector::from(handed));
+            assert_eq!(l.pending(), Some(&theta));
+            l.accept(1.0).unwrap();
+        }
     }
 }

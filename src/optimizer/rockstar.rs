@@ -951,6 +951,58 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize, const M: usize> Rockstar<N, M> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (configuration, `initial_samples` ≤ M, the strategy constants and
+    /// the unit map that follow from them, the box) and the search's: θ* finite and inside
+    /// [−1, 1]ⁿ, σ finite in (0, max_sigma], A, A⁻¹, the path and the whitened θ* finite,
+    /// the ring's length ≤ M and head below M (equal to the length until it is full), the
+    /// remembered rollouts and costs finite, the near set's indices below the length, the
+    /// pending draw inside [−1, 1]ⁿ and finite whitened, and the remembered costs finite.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        use crate::error::require_finite;
+        self.config.validate()?;
+        require(
+            (self.config.initial_samples as usize) <= M,
+            "initial_samples",
+        )?;
+        require(
+            self.constants == Constants::new(N, &self.config)?,
+            "constants",
+        )?;
+        let bounds = &self.unit.bounds;
+        bounds.check_decoded()?;
+        require(self.unit == UnitMap::new(*bounds), "unit")?;
+        let unit_box = |x: &Vector<N>| x.iter().all(|v| (-1.0..=1.0).contains(v));
+        require(unit_box(&self.theta_star), "theta_star")?;
+        require_finite(&self.theta_star_white, "theta_star_white")?;
+        require(
+            self.sigma.is_finite() && self.sigma > 0.0 && self.sigma <= self.config.max_sigma,
+            "sigma",
+        )?;
+        require(is_finite(&self.factor), "factor")?;
+        require(is_finite(&self.inverse), "inverse")?;
+        require_finite(&self.path, "path")?;
+        require(
+            self.len <= M && self.head < M && (self.len == M || self.head == self.len),
+            "len",
+        )?;
+        for (w, c) in self.samples.iter().zip(&self.costs).take(self.len) {
+            require_finite(w, "samples")?;
+            require_finite([c], "costs")?;
+        }
+        require(self.near_len <= self.len, "near_len")?;
+        let near = self.near.get(..self.near_len).unwrap_or(&[]);
+        require(near.iter().all(|&i| usize::from(i) < self.len), "near")?;
+        require(unit_box(&self.drawn), "drawn")?;
+        require_finite(&self.drawn_white, "drawn_white")?;
+        require_finite(self.last_cost.iter(), "last_cost")?;
+        require_finite(self.estimate.iter(), "estimate")?;
+        self.ledger.check_decoded(bounds)
+    }
+}
+
 impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
@@ -962,7 +1014,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
         self.drawn = projected;
         self.drawn_white = self.inverse * projected;
         let theta = self.unit.theta_of(&projected);
-        Ok(self.ledger.hand_out(theta))
+        Ok(self.ledger.hand_out(theta, &self.unit.bounds))
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {

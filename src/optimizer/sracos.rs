@@ -544,6 +544,39 @@ impl<const N: usize, const K: usize, const M: usize> Model<N, K, M> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize, const K: usize, const M: usize> Model<N, K, M> {
+    /// The checks of a decoded model: the constructor's (box, configuration, the uncertain
+    /// bits it resolves to) and the archive's: at most K + M samples, each stored sample
+    /// finite, inside the box and of finite cost.
+    fn check_decoded(&self) -> Result<(), Error> {
+        self.bounds.check_decoded()?;
+        self.config.validate()?;
+        require(
+            resolve_uncertain_bits(self.config.uncertain_bits, N)? == self.uncertain_bits,
+            "uncertain_bits",
+        )?;
+        require(self.archive.len <= K + M, "len")?;
+        check_samples(&self.bounds, self.archive.positives(), "positive")?;
+        check_samples(&self.bounds, self.archive.negatives(), "negative")
+    }
+}
+
+/// Every sample of `samples` finite, inside `bounds` and of finite cost, else an error
+/// naming `field`.
+#[cfg(feature = "serde")]
+fn check_samples<const N: usize>(
+    bounds: &Bounds<N>,
+    samples: &[Best<N>],
+    field: &'static str,
+) -> Result<(), Error> {
+    for sample in samples {
+        bounds.check(&sample.theta, field)?;
+        crate::error::require_finite([&sample.cost], field)?;
+    }
+    Ok(())
+}
+
 /// Sequential RACOS: classification-based optimisation that updates its model after every
 /// evaluation, with `K` positive and `M` negative samples stored in place
 /// ((K + M)·(4·N + 4) bytes plus a few hundred; 1.3 kB for N = 18 with the defaults).
@@ -666,6 +699,39 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
     }
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the model's (see `Model::check_decoded`), RR's slot below M, value suppression's
+    /// counter below its threshold, and a re-evaluation round only under suppression, on a
+    /// full archive, at a positive below K, with fewer than `resample_times` costs told and
+    /// a finite sum, and a held sample inside the box.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        self.model.check_decoded()?;
+        require(self.slot < M, "slot")?;
+        let suppression = self.model.config.suppression;
+        require(
+            suppression.is_none_or(|s| self.non_update < s.non_update_allowed),
+            "non_update",
+        )?;
+        if let Phase::Resample {
+            slot,
+            told,
+            sum,
+            held,
+        } = self.phase
+        {
+            let valid = suppression.is_some_and(|s| told < s.resample_times)
+                && self.model.archive.is_full()
+                && slot < K
+                && sum.is_finite();
+            require(valid, "phase")?;
+            check_samples(&self.model.bounds, &[held], "held")?;
+        }
+        self.ledger.check_decoded(&self.model.bounds)
+    }
+}
+
 impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, K, M> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
@@ -681,7 +747,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
                 model.propose(rng, |x, first| !model.archive.contains(x, first))
             }
         };
-        self.ledger.hand_out_or_stop(theta)
+        self.ledger.hand_out_or_stop(theta, &self.model.bounds)
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
@@ -751,6 +817,27 @@ impl<const N: usize, const K: usize, const M: usize> Racos<N, K, M> {
     );
 }
 
+#[cfg(feature = "serde")]
+impl<const N: usize, const K: usize, const M: usize> Racos<N, K, M> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (WR, no suppression), the model's (see `Model::check_decoded`), and
+    /// the batch's: fewer than M samples, only once the archive is full, each inside the
+    /// box and of finite cost.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        let config = &self.model.config;
+        require(config.replacement == Replacement::Worst, "replacement")?;
+        require(config.suppression.is_none(), "suppression")?;
+        self.model.check_decoded()?;
+        require(
+            self.batch_len < M && (self.batch_len == 0 || self.model.archive.is_full()),
+            "batch_len",
+        )?;
+        let batch = self.batch.get(..self.batch_len).unwrap_or(&[]);
+        check_samples(&self.model.bounds, batch, "batch")?;
+        self.ledger.check_decoded(&self.model.bounds)
+    }
+}
+
 impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K, M> {
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
@@ -762,7 +849,7 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Racos<N, K
         let theta = self.model.propose(rng, |x, first| {
             !archive.contains(x, first) && !batch.iter().any(|e| same(&e.theta, x, first))
         });
-        self.ledger.hand_out_or_stop(theta)
+        self.ledger.hand_out_or_stop(theta, &self.model.bounds)
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {

@@ -74,12 +74,7 @@ impl<G: Optimizer<N>, const N: usize> TwoPhase<G, N> {
         local_steps: Vector<N>,
         local_config: CoordinateConfig,
     ) -> Result<Self, Error> {
-        require(global_budget != 0, "global_budget")?;
-        local_config.validate()?;
-        require(
-            local_steps.iter().all(|s| s.is_finite() && *s > 0.0),
-            "initial_step",
-        )?;
+        check_phases(global_budget, &local_steps, &local_config)?;
         Ok(Self {
             global,
             global_budget,
@@ -130,6 +125,37 @@ impl<G: Optimizer<N>, const N: usize> TwoPhase<G, N> {
 
     fn global_done(&self) -> bool {
         self.global.status() != Status::Running || self.global.evaluations() >= self.global_budget
+    }
+}
+
+/// The checks of [`TwoPhase::try_with_steps`]: a global budget ≥ 1, a valid local
+/// configuration, finite positive local steps.
+fn check_phases<const N: usize>(
+    global_budget: u32,
+    local_steps: &Vector<N>,
+    local_config: &CoordinateConfig,
+) -> Result<(), Error> {
+    require(global_budget != 0, "global_budget")?;
+    local_config.validate()?;
+    require(
+        local_steps.iter().all(|s| s.is_finite() && *s > 0.0),
+        "initial_step",
+    )
+}
+
+#[cfg(feature = "serde")]
+impl<G: Optimizer<N> + crate::record::Persistent, const N: usize> TwoPhase<G, N> {
+    /// The checks of a decoded search ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (a global budget ≥ 1, the local configuration and steps), the
+    /// global optimizer's own, and the local search's own, over the global optimizer's box.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        check_phases(self.global_budget, &self.local_steps, &self.local_config)?;
+        self.global.validate()?;
+        if let Some(local) = &self.local {
+            local.check_decoded()?;
+            require(local.bounds() == self.global.bounds(), "local")?;
+        }
+        Ok(())
     }
 }
 

@@ -63,6 +63,11 @@ where
     AuvAdapter<O>: Persistent,
 {
     const SHAPE: Shape = Shape::new(*b"AUVC", &[]).nest(<AuvAdapter<O> as Persistent>::SHAPE);
+
+    /// The adapter's checks; the RNG and the episode counter can hold any value.
+    fn validate(&self) -> Result<(), Error> {
+        self.learner.adapter.validate()
+    }
 }
 
 impl<O: Optimizer<P>> AuvCheckpoint<O> {

@@ -43,6 +43,15 @@ impl Persistent for FeedForwardPd {
     // A four-byte tag of your own, then the type's const-generic sizes (none here). A
     // checkpoint written by a firmware whose controller has another tag or sizes is refused.
     const SHAPE: Shape = Shape::new(*b"FFPD", &[]);
+
+    // Checks a decoded controller as a constructor would check a new one: `load` refuses a
+    // record whose gains are not finite (a writer's bug, a forged file).
+    fn validate(&self) -> Result<(), Error> {
+        match self.kp.is_finite() && self.kd.is_finite() {
+            true => Ok(()),
+            false => Err(Error::NonFinite("gains")),
+        }
+    }
 }
 
 /// Everything learning needs across a power cut: the adapter (optimizer, controller, cost,
