@@ -47,9 +47,10 @@ impl Persistent for FeedForwardPd {
     // Checks a decoded controller as a constructor would check a new one: `load` refuses a
     // record whose gains are not finite (a writer's bug, a forged file).
     fn validate(&self) -> Result<(), Error> {
-        match self.kp.is_finite() && self.kd.is_finite() {
-            true => Ok(()),
-            false => Err(Error::NonFinite("gains")),
+        if self.kp.is_finite() && self.kd.is_finite() {
+            Ok(())
+        } else {
+            Err(Error::NonFinite("gains"))
         }
     }
 }
