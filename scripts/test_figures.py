@@ -49,6 +49,7 @@ class Formats(unittest.TestCase):
         self.assertEqual(figures.fmt("1703160", "Mf2"), "1.70")
         self.assertEqual(figures.fmt("-3.2827", "f2u"), "−3.28")
         self.assertEqual(figures.fmt("12000", "s"), "12 000")
+        self.assertEqual(figures.fmt("-3.2827", "f2a"), "3.28")
         self.assertEqual(figures.fmt("text | kept", "block"), "text | kept")
         with self.assertRaises(SystemExit):
             figures.fmt("1", "x9")
