@@ -36,7 +36,8 @@ RESULTS = {
             "pattern": r"^\| instructions: Cmaes<18, 12>, ask \+ tell \(one evaluation\) \| median \d+, mean (\d+)",
         },
         "size": {"producer": "fw", "value": "4768", "pattern": r"^\| size_of Adapter with Cmaes<18, 12> \| (\d+) B"},
-        "runs": {"producer": "hop", "value": "2", "pattern": r"^run \d+: ([\d.]+) cm", "reduce": "count_le:1.5"},
+        "runs": {"producer": "hop", "value": "2", "pattern": r"^run \d+: ([\d.]+) cm", "reduce": "count_le:1.5",
+                 "measured": {"commit": "0123456789ab", "date": "2026-01-01"}},
     },
 }
 
@@ -115,6 +116,11 @@ class DocsCheck(unittest.TestCase):
                 with open(doc, "w", encoding="utf-8") as out:
                     out.write(body)
                 self.assertEqual(figures.check_docs(RESULTS), [])
+                unmeasured = {"producers": RESULTS["producers"],
+                              "figures": dict(RESULTS["figures"], runs=dict(RESULTS["figures"]["runs"]))}
+                del unmeasured["figures"]["runs"]["measured"]
+                self.assertEqual(figures.check_docs(unmeasured),
+                                 ["runs: a slow figure without the commit and date it was measured at"])
                 with open(doc, "w", encoding="utf-8") as out:
                     out.write(body.replace("38,063", "38,064"))
                 errors = figures.check_docs(RESULTS)
