@@ -6,7 +6,8 @@
 //! into fresh optimizers (the search is deterministic given the costs), so only `ask` and
 //! `tell` are inside the clock. The median over repetitions is reported.
 
-use ctrl_adapt::controller::{Adapter, CorrectedPd, PeriodicPd, StateFeatures};
+use auv_survey::{AuvAdapter, AuvController};
+use ctrl_adapt::controller::PeriodicPd;
 use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::optimizer::{
     Bounds, CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig,
@@ -74,9 +75,6 @@ fn bench<const N: usize, O: Optimizer<N>>(name: &str, make: impl Fn() -> O) {
     );
 }
 
-/// The AUV configuration of the adapter: 18 parameters, state [error, velocity], 3 actions.
-type AuvAdapter<O> = Adapter<O, CorrectedPd<3, 6, 6, 18, StateFeatures<6>>, SurveyCost, 18, 6, 3>;
-
 fn main() {
     println!("host: {} {}", std::env::consts::ARCH, std::env::consts::OS);
     println!("| optimizer | N | evals/run | ns/ask+tell (median) | (min) | size_of (B) |");
@@ -100,8 +98,8 @@ fn main() {
             size_of::<AuvAdapter<ControlledRandomSearch<18, 38>>>(),
         ),
         (
-            "CorrectedPd<3, 6, 6, 18, StateFeatures<6>> (AUV policy)",
-            size_of::<CorrectedPd<3, 6, 6, 18, StateFeatures<6>>>(),
+            "AuvController (AUV policy: CorrectedPd over IdentityFeatures)",
+            size_of::<AuvController>(),
         ),
         (
             "PeriodicPd<10, 31> (hopping-leg policy)",

@@ -34,7 +34,10 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+try:
+    import numpy as np  # noqa: E402  (the peers need it; the library's rows run without it)
+except ImportError:
+    np = None
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ORACLE = os.path.join(ROOT, "target", "release", "oracle")
@@ -53,9 +56,10 @@ class Oracle:
         )
         n, budget, threshold = self.ask(f"task {task} {seed}").split()[1:]
         self.n, self.budget, self.threshold = int(n), int(budget), float(threshold)
-        self.lower = np.array(self.ask("lower").split(), dtype=float)
-        self.upper = np.array(self.ask("upper").split(), dtype=float)
-        self.start = np.array(self.ask("start").split(), dtype=float)
+        vector = (lambda v: np.array(v, dtype=float)) if np else (lambda v: [float(x) for x in v])
+        self.lower = vector(self.ask("lower").split())
+        self.upper = vector(self.ask("upper").split())
+        self.start = vector(self.ask("start").split())
 
     def ask(self, line):
         t0 = time.perf_counter()
@@ -102,6 +106,8 @@ class Scorer:
 
 def run_peer(method, oracle, budget, seed):
     """Runs a peer; returns (costs, returned θ in the box)."""
+    if np is None:
+        raise SystemExit("the peers need numpy: see experiments/peers/requirements.txt")
     f = Scorer(oracle, budget)
     n, step, x0 = oracle.n, STEP[oracle.task], oracle.unit(oracle.start)
     returned = None
