@@ -31,12 +31,21 @@ pub(crate) const fn identity<const N: usize>() -> SMatrix<f32, N, N> {
 /// M v, column by column (y = Σ_j m_j v_j): `m * v` with `m` a matrix held by value (a
 /// field of a `Copy` type) copies it onto the stack first (1.3 KB at N = 18, 3.8 KB at
 /// N = 31) before multiplying.
+/// Inlined, so that the product is written straight into the caller's vector (a call
+/// returns it through a temporary of its own).
+#[inline(always)]
 pub(crate) fn times<const N: usize>(m: &SMatrix<f32, N, N>, v: &Vector<N>) -> Vector<N> {
     let mut y = Vector::<N>::zeros();
+    times_into(m, v, &mut y);
+    y
+}
+
+/// y ← M v, as [`times`] but into the caller's `y` (no vector returned on the stack).
+pub(crate) fn times_into<const N: usize>(m: &SMatrix<f32, N, N>, v: &Vector<N>, y: &mut Vector<N>) {
+    y.fill(0.0);
     for (m_j, v_j) in m.column_iter().zip(v.iter()) {
         unrolled::<N>(|i| y[i] += m_j[i] * v_j);
     }
-    y
 }
 
 /// Calls `body(i)` for every i in 0..N, in order, as straight-line code when N ≤ 32.

@@ -131,6 +131,10 @@
 //!   `max_evaluations`.
 //!
 //! # Known limits
+//! The figures of this paragraph were measured with the earlier defaults (λ = 0.5, the
+//! extra start points at every update) and have not been re-measured; on the rotated 10-D
+//! ellipsoid of condition 10³ the current defaults end two orders of magnitude lower after
+//! 1 000 rollouts (findings in `experiments/findings/rockstar-arm.md`).
 //! On the rotated 10-D ellipsoid of condition 10⁴ (σ₀ = 0.1, memory 50, seeds 0–3), three
 //! runs reached a best cost below 10⁻⁶ within 2 800 rollouts and stopped with θ*'s cost
 //! below 10⁻⁶; the fourth stopped (σ ≤ 10⁻⁶) with θ*'s cost at 3·10⁻⁵ and never reached
@@ -160,12 +164,14 @@
 //! O(n³ + M·n²)/n on average for the refactoring every n updates, and O(s·|I|·n) for the
 //! descents, with s ≤ 4·81 passes over I (usually far fewer; on the sphere tests |I| holds
 //! about 15 rollouts whatever M). State: 4·(M·(n + 1) + 2n² + 9n) + 2M bytes and about
-//! 300 more: `size_of` is 10 600 B for `Rockstar<18, 90>` and 29 400 B for
-//! `Rockstar<31, 155>` on x86-64 (unit test `sizes`), 10 584 B and 29 380 B on thumbv7em.
-//! **M = 5n** (the C++ code's window) is the recommended size. On the 18- and 31-D spheres
-//! M = 2n, 3n, 5n and 10n made the same progress over 800 rollouts (the near set is
-//! small there); the larger memory is kept for noisy costs, where the regression is meant
-//! to average over the rollouts near θ* (not measured here). Host runs at
+//! 300 more: `size_of` is 10 608 B for `Rockstar<18, 90>` and 29 408 B for
+//! `Rockstar<31, 155>` on x86-64 (unit test `sizes`), 10 592 B and 29 392 B on thumbv7em.
+//! **M = 5n** (the C++ code's window) is the recommended size; with M < 2n the default gate
+//! never lets the extra start points run. On the 18- and 31-D spheres M = 2n, 3n, 5n and
+//! 10n made the same progress over 800 rollouts (the near set is small there; measured
+//! with the earlier defaults, λ = 0.5 and no gate); the larger memory is kept for noisy
+//! costs, where the regression is meant to average over the rollouts near θ* (not
+//! measured here). Host runs at
 //! n = 400–500 with M ≈ 5n hold several megabytes (7 MB for `Rockstar<500, 2500>`): keep
 //! the object in a `Box` or a `static`, and build it where the stack can hold it once (a
 //! thread with a large stack), since [`Rockstar::try_new`] returns it by value.
@@ -177,8 +183,13 @@
 //! descent are updated in place, and `ask`, `tell`, the update, its extra descents, its
 //! acceptance and the covariance update are separate (never inlined) functions, so that
 //! their temporaries are on the stack one branch at a time. Build the object where it is
-//! to stay and lend it (`&mut`): the `bench_rockstar` firmware, `Rockstar<31, 155>` in
-//! its frame, peaks at STACK_FIGURE.
+//! to stay and lend it (`&mut`): [`Rockstar::try_new`] must be inlined into the frame that
+//! holds the result (out of line it assembles the memory on its own stack, 20 KB at
+//! n = 31, and the result is copied). The `bench_rockstar` firmware (`Rockstar<31, 155>`,
+//! 29 392 B, in one frame, lent to the loop) peaks at 31 564 B of stack on the Cortex-M4F,
+//! 2 172 B above the object (58 956 B before these measures); the deepest paths are the
+//! construction (the box and the configuration, about 1.9 KB) and `tell` through the
+//! update, its extra descents and the covariance update (about 1.8 KB).
 //!
 //! # Panic freedom
 //! The linear algebra is written out here (a Cholesky decomposition, a triangular solve and
@@ -195,7 +206,7 @@ use super::{Ledger, Optimizer, Status};
 use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
-use crate::vector::{identity, times};
+use crate::vector::{identity, times, times_into};
 use crate::{Bounds, Error, Vector};
 
 /// σ never falls below this (the kernel width ϑσ² stays a normal f32).
@@ -483,6 +494,9 @@ pub struct Rockstar<const N: usize, const M: usize> {
 impl<const N: usize, const M: usize> Rockstar<N, M> {
     /// A search starting at θ* = `start` (finite and inside `bounds`) with Σ = σ₀² I in
     /// normalised units (σ₀ = `config.initial_sigma` relative to each half-width).
+    ///
+    /// The object is large (about 4·M·n bytes): call this where it is to stay, and lend it
+    /// (module docs, "Stack").
     pub fn try_new(
         bounds: Bounds<N>,
         start: Vector<N>,
@@ -735,15 +749,20 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         toward.fill(0.0);
         toward_cost.fill(0.0);
         for (s, r) in self.members(set) {
-            let d = s - w;
             // exp(−½ dᵀ (2Σ_ε)⁻¹ d), in whitened units dᵀ Σ_ε⁻¹ d = ‖d‖²/(ϑσ²).
-            let e = libm::expf(-0.25 * (d.norm_squared() * inv_h2));
+            let e = libm::expf(-0.25 * (distance2(s, w) * inv_h2));
             if e > 0.0 {
                 let rho = (0.5 * r - reg.floor) / reg.scale;
                 a += e * rho;
                 b += e;
-                toward.axpy(e, &d, 1.0);
-                toward_cost.axpy(e * rho, &d, 1.0);
+                // d = s − w element by element, not as a vector on the stack.
+                let (e_rho, ends) = (e * rho, s.iter().zip(w.iter()));
+                for ((t, c), (s_i, w_i)) in toward.iter_mut().zip(toward_cost.iter_mut()).zip(ends)
+                {
+                    let d = s_i - w_i;
+                    *t += e * d;
+                    *c += e_rho * d;
+                }
             }
         }
         (a / b, b)
@@ -824,7 +843,8 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         // ever if it is not in the near set.
         let mut best = self.descend(Set::Near, &near, &self.theta_star_white, h2);
         if self.near_len >= self.extra_starts_from() {
-            self.descend_from_extra_starts(cheapest, cost, &near, h2, &mut best);
+            self.descend_from_near_starts(cheapest, cost, &near, h2, &mut best);
+            self.descend_from_best_ever(&near, h2, &mut best);
         }
 
         self.accept(&best, cost, previous);
@@ -836,12 +856,14 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     #[inline(never)]
     fn accept(&mut self, best: &(Vector<N>, f32), cost: f32, previous: f32) {
         let sigma = self.sigma;
-        let x = times(&self.factor, &best.0);
-        if x.iter().all(|v| v.is_finite()) {
-            self.theta_star = clamp_unit(x);
-            let white = times(&self.inverse, &self.theta_star);
+        // One vector on the stack: x = A w_best, then A⁻¹θ*, then A⁻¹Δθ.
+        let mut v = times(&self.factor, &best.0);
+        if v.iter().all(|v| v.is_finite()) {
+            self.theta_star = clamp_unit(v);
+            times_into(&self.inverse, &self.theta_star, &mut v);
             // A⁻¹Δθ = A⁻¹θ*_new − A⁻¹θ*_old, formed in the old value's place.
-            let mut delta = core::mem::replace(&mut self.theta_star_white, white);
+            core::mem::swap(&mut v, &mut self.theta_star_white);
+            let mut delta = v;
             delta.zip_apply(&self.theta_star_white, |d, w| *d = w - *d);
             self.estimate = Some((2.0 * best.1).clamp(-f32::MAX, f32::MAX));
             // √(Δθᵀ Σ⁻¹ Δθ) = ‖A⁻¹Δθ‖/σ.
@@ -870,12 +892,12 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         self.config.extra_starts_from.map_or(2 * N, |k| k as usize)
     }
 
-    /// Descends from the extra start points of `ROCKstar.m` (the cheapest near rollout
-    /// `cheapest`, the new rollout if its `cost` beats C, the best rollout ever if it is
-    /// cheaper than the near set's) and keeps in `best` the end point of lowest J̃.
+    /// Descends from the extra start points of `ROCKstar.m` in the near set (the cheapest
+    /// near rollout `cheapest`, the new rollout if its `cost` beats C) and keeps in `best`
+    /// the end point of lowest J̃.
     // Out of line: module docs, "Stack".
     #[inline(never)]
-    fn descend_from_extra_starts(
+    fn descend_from_near_starts(
         &self,
         cheapest: Option<usize>,
         cost: f32,
@@ -883,26 +905,29 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         h2: f32,
         best: &mut (Vector<N>, f32),
     ) {
-        let mut consider = |candidate: (Vector<N>, f32)| {
-            if candidate.1 < best.1 {
-                *best = candidate;
-            }
-        };
         if let Some(w) = cheapest.and_then(|i| self.samples.get(i)) {
-            consider(self.descend(Set::Near, near, w, h2));
+            keep_lower(best, self.descend(Set::Near, near, w, h2));
         }
         if 0.5 * cost < near.floor + near.scale
             && let Some(w) = self.newest()
         {
-            consider(self.descend(Set::Near, near, w, h2));
+            keep_lower(best, self.descend(Set::Near, near, w, h2));
         }
+    }
+
+    /// Descends from the best rollout ever if it is cheaper than the near set's cheapest
+    /// (`near`), over every remembered rollout, and keeps in `best` the end point of lowest
+    /// J̃ (the last extra start point of `ROCKstar.m`).
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
+    fn descend_from_best_ever(&self, near: &Regression, h2: f32, best: &mut (Vector<N>, f32)) {
         if let Some(ever) = self.ledger.best()
             && 0.5 * ever.cost < near.floor
         {
             let x = clamp_unit(self.unit.unit_of(&ever.theta));
             let w = times(&self.inverse, &x);
             let all = self.regression(Set::All);
-            consider(self.descend(Set::All, &all, &w, h2));
+            keep_lower(best, self.descend(Set::All, &all, &w, h2));
         }
     }
 
@@ -965,6 +990,8 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     /// and the whitened vectors unchanged, A⁻¹ overwritten: the caller resets the shape).
     /// No N × N temporary (3.8 KB at n = 31, on a microcontroller's stack): L is built in
     /// A⁻¹'s storage, since A⁻¹ is recomputed from it.
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
     fn refactor(&mut self) -> bool {
         gram_into(&self.factor, &mut self.inverse);
         if !cholesky_in_place(&mut self.inverse) {
@@ -1066,6 +1093,13 @@ fn clamp_unit<const N: usize>(mut x: Vector<N>) -> Vector<N> {
     // `clamp`'s `min <= max` assertion holds for these constants and is optimised away.
     x.apply(|v| *v = if v.is_nan() { -1.0 } else { v.clamp(-1.0, 1.0) });
     x
+}
+
+/// `best` ← `candidate` if the candidate's J̃ (its second element) is lower.
+fn keep_lower<const N: usize>(best: &mut (Vector<N>, f32), candidate: (Vector<N>, f32)) {
+    if candidate.1 < best.1 {
+        *best = candidate;
+    }
 }
 
 /// ‖a − b‖², without the difference as a temporary.
@@ -1723,16 +1757,18 @@ mod tests {
         assert!(rock.best().unwrap().cost < 1e-6);
     }
 
-    /// Checks recovery from a singular shape: a factor whose first column is zero (finite,
-    /// but A Aᵀ is not positive definite) fails the next refactoring's Cholesky
-    /// decomposition; the shape is reset to I, the remembered rollouts keep their positions
-    /// (A w is finite), and the sphere is still minimised.
+    /// Checks recovery from a singular shape: a factor whose first row is zero (finite, but
+    /// A Aᵀ has a zero row, which the rank-one updates A + (A z)·(…)ᵀ keep, so it is not
+    /// positive definite) fails the next refactoring's Cholesky decomposition with a zero
+    /// pivot; the shape is reset to I, the remembered rollouts keep their positions (A w is
+    /// finite), and the sphere is still minimised. (A zero column, used before, is repaired
+    /// by the first rank-one update, so whether a refactoring failed was up to rounding.)
     #[test]
     fn recovers_from_a_singular_shape() {
         let (bounds, mut rock) = from_origin::<4, 16>(config(2000));
         let mut r = rng(10);
         tell_inside(&mut rock, &bounds, &mut r, sphere, Some(40));
-        rock.factor.column_mut(0).fill(0.0);
+        rock.factor.row_mut(0).fill(0.0);
         let positions: std::vec::Vec<Vector<4>> = rock.memory().map(|(t, _)| t).collect();
         while rock.recoveries() == 0 {
             let t = rock.ask(&mut r).unwrap();
@@ -1848,8 +1884,8 @@ mod tests {
     /// `Rockstar<31, 155>` (M = 5n, the window of the authors' C++ code).
     #[test]
     fn sizes() {
-        assert_eq!(core::mem::size_of::<Rockstar<18, 90>>(), 10_600);
-        assert_eq!(core::mem::size_of::<Rockstar<31, 155>>(), 29_400);
+        assert_eq!(core::mem::size_of::<Rockstar<18, 90>>(), 10_608);
+        assert_eq!(core::mem::size_of::<Rockstar<31, 155>>(), 29_408);
     }
 
     fn any_cost() -> impl Strategy<Value = f32> {

@@ -113,8 +113,8 @@ fn main() -> ! {
         let ((), empty) = counter.measure(|| ());
         defmt::info!("footprint: sample empty = {=u32}", empty);
     }
-    let measured = build_and_measure::<N, 90>(&mut counter, "rockstar", auv::bounds)
-        .and_then(|()| {
+    let measured =
+        build_and_measure::<N, 90>(&mut counter, "rockstar", auv::bounds).and_then(|()| {
             build_and_measure::<N_HOPPER, 155>(&mut counter, "rockstar_hopper", unit_box)
         });
     if let Err(e) = measured {
