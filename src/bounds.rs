@@ -139,7 +139,8 @@ impl<const N: usize> UnitMap<N> {
         // Inlined, in place and with the fields by reference: a call returns its vector
         // through a temporary, and `self.centre` by value is a copy (4n bytes of stack
         // each, counted on the firmware).
-        let mut x = theta - &self.centre;
+        let mut x = *theta;
+        x -= &self.centre;
         x.component_div_assign(&self.half);
         x
     }

@@ -89,12 +89,14 @@ pub fn ackley<const N: usize>(theta: &Vector<N>, centre: f64) -> f32 {
 mod tests {
     use super::*;
 
-    /// Checks the rotated ellipsoid: 0 at its minimiser 0.3·1; with condition 1 it is the
+    /// Checks the rotated ellipsoid: below 1e-12 at the f32 nearest its minimiser 0.3·1; with condition 1 it is the
     /// sphere around 0.3 (R is orthogonal) to 1e-6 relative, at 20 points; with condition
     /// 10³ it differs from the unrotated ellipsoid Σ 10^(i/3) (θ_i − 0.3)² (axes mixed).
     #[test]
     fn rotated_ellipsoid_is_a_rotation() {
-        assert_eq!(rotated_ellipsoid(&Vector::<10>::repeat(0.3), 3.0), 0.0);
+        // 0.3 as f32 is 1.2e-8 from the minimiser: a cost of order 1e-13 there.
+        let at_minimum = rotated_ellipsoid(&Vector::<10>::repeat(0.3), 3.0);
+        assert!(at_minimum < 1e-12, "{at_minimum}");
         for k in 0..20 {
             let t = Vector::<10>::from_fn(|i, _| ((i * 7 + k * 3) % 11) as f32 / 10.0 - 0.5);
             let (rotated, sphere) = (rotated_ellipsoid(&t, 0.0), sphere(&t, 0.3));
