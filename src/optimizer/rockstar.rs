@@ -181,15 +181,15 @@
 //! matrix–vector product reads A and A⁻¹ by reference (nalgebra's `A * v` on a matrix held by
 //! value copies it first), the refactoring builds L in A⁻¹'s storage, the vectors of the
 //! descent are updated in place, and `ask`, `tell`, the update, its extra descents, its
-//! acceptance and the covariance update are separate (never inlined) functions, so that
-//! their temporaries are on the stack one branch at a time. Build the object where it is
+//! acceptance, the covariance update and the refactoring are separate (never inlined)
+//! functions, so that their temporaries are on the stack one branch at a time. Build the object where it is
 //! to stay and lend it (`&mut`): [`Rockstar::try_new`] must be inlined into the frame that
 //! holds the result (out of line it assembles the memory on its own stack, 20 KB at
 //! n = 31, and the result is copied). The `bench_rockstar` firmware (`Rockstar<31, 155>`,
-//! 29 392 B, in one frame, lent to the loop) peaks at 31 564 B of stack on the Cortex-M4F,
-//! 2 172 B above the object (58 956 B before these measures); the deepest paths are the
-//! construction (the box and the configuration, about 1.9 KB) and `tell` through the
-//! update, its extra descents and the covariance update (about 1.8 KB).
+//! 29 392 B, in one frame, lent to the loop) peaks at 31 264 B of stack on the Cortex-M4F,
+//! 1 872 B above the object (58 956 B before these measures); the deepest paths are the
+//! construction (the box, the start and the configuration) and `tell` through the update
+//! and the acceptance of θ* into the covariance update.
 //!
 //! # Panic freedom
 //! The linear algebra is written out here (a Cholesky decomposition, a triangular solve and
@@ -848,6 +848,14 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         }
 
         self.accept(&best, cost, previous);
+        // Every n covariance updates; here rather than in `adapt_shape`, so that the two
+        // frames are not on the stack together (module docs, "Stack").
+        if self.since_refactor >= N as u32 {
+            self.since_refactor = 0;
+            if !self.refactor() {
+                self.recover();
+            }
+        }
     }
 
     /// Steps 4–6 after the descents: θ* ← the end point `best` (whitened, J̃/2), the
@@ -977,12 +985,6 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         move_white(&mut self.path);
         self.covariance_updates = self.covariance_updates.saturating_add(1);
         self.since_refactor += 1;
-        if self.since_refactor >= N as u32 {
-            self.since_refactor = 0;
-            if !self.refactor() {
-                self.recover();
-            }
-        }
     }
 
     /// A ← s L with L = chol(A Aᵀ) and s = det(L)^{−1/n}, A⁻¹ ← (s L)⁻¹, every whitened

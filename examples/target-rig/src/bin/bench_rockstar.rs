@@ -51,7 +51,7 @@ fn build_and_measure<const D: usize, const M: usize>(
 fn build<const D: usize, const M: usize>(
     bounds: fn() -> Result<Bounds<D>, Error>,
 ) -> Result<Rockstar<D, M>, Error> {
-    Rockstar::try_new(bounds()?, Vector::zeros(), RockstarConfig::DEFAULT)
+    bounds().and_then(|b| Rockstar::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT))
 }
 
 /// The hopping leg's box, [−1, 1]ⁿ.
