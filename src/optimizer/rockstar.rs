@@ -133,8 +133,9 @@
 //! # Known limits
 //! The figures of this paragraph were measured with the earlier defaults (λ = 0.5, the
 //! extra start points at every update) and have not been re-measured; on the rotated 10-D
-//! ellipsoid of condition 10³ the current defaults end two orders of magnitude lower after
-//! 1 000 rollouts (findings in `experiments/findings/rockstar-arm.md`).
+//! ellipsoid of condition 10³ the current defaults end over ten times lower after 1 000
+//! rollouts (median θ* cost 2.6·10⁻⁴ against 6.0·10⁻³, seeds 0–9; findings in
+//! `experiments/findings/rockstar-arm.md`).
 //! On the rotated 10-D ellipsoid of condition 10⁴ (σ₀ = 0.1, memory 50, seeds 0–3), three
 //! runs reached a best cost below 10⁻⁶ within 2 800 rollouts and stopped with θ*'s cost
 //! below 10⁻⁶; the fourth stopped (σ ≤ 10⁻⁶) with θ*'s cost at 3·10⁻⁵ and never reached
