@@ -141,15 +141,23 @@ impl<const N: usize> UnitMap<N> {
     }
 
     /// x = (θ − centre) / half-width, not clamped.
+    #[inline(always)]
     pub(crate) fn unit_of(&self, theta: &Vector<N>) -> Vector<N> {
-        (theta - self.centre).component_div(&self.half)
+        // Inlined, in place and with the fields by reference: a call returns its vector
+        // through a temporary, and `self.centre` by value is a copy (4n bytes of stack
+        // each, counted on the firmware).
+        let mut x = *theta;
+        x -= &self.centre;
+        x.component_div_assign(&self.half);
+        x
     }
 
     /// θ = centre + half-width ∘ x, projected onto the box (rounding, or x outside
     /// [−1, 1]ⁿ).
     pub(crate) fn theta_of(&self, x: &Vector<N>) -> Vector<N> {
-        self.bounds
-            .clamp(&(self.centre + self.half.component_mul(x)))
+        let mut theta = self.half.component_mul(x);
+        theta += &self.centre;
+        self.bounds.clamp(&theta)
     }
 }
 

@@ -55,7 +55,7 @@ use crate::error::Error;
 
 /// The version of the record layout and of every type's encoding. It changes whenever a
 /// saved field is added, removed or reordered: a record of another version is refused.
-pub const FORMAT_VERSION: u16 = 4;
+pub const FORMAT_VERSION: u16 = 5;
 
 /// The most words a [`Shape`] holds (a compile-time error beyond).
 pub const SHAPE_CAPACITY: usize = 32;
@@ -718,7 +718,7 @@ mod tests {
         use alloc::string::ToString;
         assert_eq!(
             RecordError::Version { found: 1 }.to_string(),
-            "the record has format version 1, this build reads 4"
+            "the record has format version 1, this build reads 5"
         );
     }
 

@@ -94,12 +94,35 @@ pub fn rockstar<const N: usize, const M: usize>(
     seed: u64,
     cost: &mut impl FnMut(&Vector<N>) -> f32,
 ) -> Result<Session, Error> {
-    let config = RockstarConfig {
-        initial_sigma: std / half_width,
+    let config = rockstar_config(RockstarConfig::DEFAULT, std / half_width, rollouts);
+    rockstar_with::<N, M>(config, bounds, start, seed, cost)
+}
+
+/// `base` with σ₀ = `initial_sigma`, no stopping tolerance and a budget of `rollouts`: the
+/// configuration of [`rockstar`] when `base` is the default.
+pub fn rockstar_config(
+    base: RockstarConfig,
+    initial_sigma: f32,
+    rollouts: usize,
+) -> RockstarConfig {
+    RockstarConfig {
+        initial_sigma,
         tolerance: 0.0,
         max_evaluations: rollouts as u32,
-        ..RockstarConfig::DEFAULT
-    };
+        ..base
+    }
+}
+
+/// One ROCK* session with `config` (its budget is `config.max_evaluations` rollouts), boxed
+/// as in [`rockstar`].
+pub fn rockstar_with<const N: usize, const M: usize>(
+    config: RockstarConfig,
+    bounds: Bounds<N>,
+    start: Vector<N>,
+    seed: u64,
+    cost: &mut impl FnMut(&Vector<N>) -> f32,
+) -> Result<Session, Error> {
+    let rollouts = config.max_evaluations as usize;
     let mut opt = Box::new(Rockstar::<N, M>::try_new(bounds, start, config)?);
     let lowest = lowest_so_far(opt.as_mut(), cost, rollouts, seed)?;
     Ok(Session {

@@ -226,6 +226,7 @@ fn rockstar() {
                 lambda: field(rng, d.lambda),
                 near_radius: field(rng, d.near_radius),
                 initial_samples: count(rng, d.initial_samples),
+                extra_starts_from: (rng.next_u32().is_multiple_of(2)).then(|| count(rng, 6)),
                 step_gain: field(rng, d.step_gain),
                 descent_iterations: cap(rng, d.descent_iterations),
                 trust_radius: field(rng, d.trust_radius),

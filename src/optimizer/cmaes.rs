@@ -121,7 +121,7 @@ use super::{Ledger, Optimizer, Status, keep_ranked};
 use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
-use crate::vector::unrolled;
+use crate::vector::{identity, times};
 use crate::{Bounds, Error, Vector};
 
 mod eigen;
@@ -186,17 +186,6 @@ where
             Vector::from_array_storage(ArrayStorage(values)),
         ))
     }
-}
-
-/// The N × N identity, at compile time.
-const fn identity<const N: usize>() -> SMatrix<f32, N, N> {
-    let mut columns = [[0.0; N]; N];
-    let mut j = 0;
-    while j < N {
-        columns[j][j] = 1.0;
-        j += 1;
-    }
-    SMatrix::from_array_storage(ArrayStorage(columns))
 }
 
 /// Parameters of [`Cmaes`]. Plain fields, checked by [`CmaesConfig::validate`] (and by
@@ -498,14 +487,9 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
         self.times_basis(&self.scales.component_mul(z))
     }
 
-    /// B v, column by column (y = Σ_j b_j v_j): `self.basis * v` would take B by value and
-    /// copy it (1.3 KB of stack at N = 18) before multiplying.
+    /// B v, without copying B ([`times`]).
     fn times_basis(&self, v: &Vector<N>) -> Vector<N> {
-        let mut y = Vector::<N>::zeros();
-        for (b_j, v_j) in self.basis.column_iter().zip(v.iter()) {
-            unrolled::<N>(|i| y[i] += b_j[i] * v_j);
-        }
-        y
+        times(&self.basis, v)
     }
 
     /// Keeps `sample` if it is among the μ best of the generation so far (all L with

@@ -2,9 +2,11 @@
 //! after J. Hwangbo, C. Gehring, H. Sommer, R. Siegwart and J. Buchli, "ROCK*: Efficient
 //! black-box optimization for policy learning", IEEE-RAS Humanoids 2014 (Algorithm 1,
 //! eq. 2–5), with the defaults and details the paper leaves to the authors' code: their
-//! MATLAB `ROCKstar.m` and `gradient_descent.m` (ADRL/ETH Zurich, 2014) and the later C++
-//! `Rockstar.hpp` (2015), read in the public copy of the GitHub repository
-//! `lomcin/c_rockstar` (BSD-licensed; reimplemented here, not copied).
+//! MATLAB `ROCKstar.m`, `ROCKstarTemplate.m` and `gradient_descent.m` (ADRL/ETH Zurich,
+//! 2014, revised in March 2015) and the C++ `cpp_code/Rockstar.hpp` (2015), read with their
+//! history in the public copy of the GitHub repository `lomcin/c_rockstar` (BSD-licensed;
+//! reimplemented here, not copied). "The code" below is the 2015 `ROCKstar.m` unless said
+//! otherwise.
 //!
 //! One rollout, in the paper's notation (here in normalised coordinates, see below):
 //!
@@ -31,13 +33,16 @@
 //! "starts by sampling two policy parameter sets"), all drawn around the start.
 //!
 //! # Defaults (from the authors' MATLAB code unless said otherwise)
-//! λ = 0.5 (`ROCKstar.m` and its template; the paper recommends 0.4–0.6; other copies use
-//! 0.3 and 0.2), λ_MD = 10 (as a multiple of P(0.95, n) on the squared Σ-distance, see the
+//! λ = 0.3 (`ROCKstar.m` and `ROCKstarTemplate.m` from their March 2015 revision on; the
+//! 2014 files had 0.5, `Rockstar.hpp` had 0.3 and from May 2015 0.2, and the paper
+//! recommends 0.4–0.6; on the rotated 10-D ellipsoid of condition 10³ 0.3 ends far lower
+//! than 0.5, see the findings in `experiments/findings/rockstar-arm.md`), λ_MD = 10 (as a multiple of P(0.95, n) on the squared Σ-distance, see the
 //! deviations), c_c = 3/((n + 6) ln(n + 6)), c_cov = 6/((n + 7) ln(n + 7)), κ = 1.5,
 //! χ̂_n = √n (1 − 1/(4n) + 1/(21n²)), ζ = 1.3^{1/ln(n + 2.5)}, ξ = ζ^{0.3} (the code divides
 //! σ by ζ^{1.3} after a worse rollout: `imp_factor` 1.3), two initial samples, descents of
 //! at most 80 steps, trust radius √2 and step tolerance 0.01 (the code compares the squares
-//! with 2 and 10⁻⁴), the four start points of `ROCKstar.m`. Not from the code: the step
+//! with 2 and 10⁻⁴), the four start points of `ROCKstar.m` with its gate on three of them
+//! (below). Not from the code: the step
 //! gain g = ½ (the paper's γ = 1/(2(C − r_min)); the code uses g = 1), σ₀ = 0.1 of the
 //! box's half-width (the code's `unit_exploration_noise` is 0.05 of the user's parameter
 //! scale), σ ≤ 1 and the stopping tolerance σ ≤ 10⁻⁶ (the code stops at σ < 10⁻⁸).
@@ -56,21 +61,25 @@
 //!   in the near set, as in the code (the paper: "the lowest cost observed").
 //! * **Which rollouts enter the regression.** Eq. 2 sums over all rollouts; the code sums
 //!   over the near set I of eq. 3 only, for both J̃ and C. **The code is followed**: a
-//!   rollout outside I has a small kernel weight at θ* (below λ⁵ ≈ 0.03 at λ = 0.5, by the
+//!   rollout outside I has a small kernel weight at θ* (below λ⁵ ≈ 0.0024 at λ = 0.3, by the
 //!   radius below), C is the local mean the extrapolation needs, and the work per descent
 //!   step is O(|I|·n).
 //! * **Radius of the near set.** Eq. 3 bounds the Σ_ε-distance by λ_MD; the code bounds the
 //!   squared Σ-distance by λ_MD·P(0.95, n) with λ_MD = 10 (≈ a squared Σ_ε-distance of
-//!   −20 ln λ ≈ 13.9 at λ = 0.5) and multiplies the bound by 3 until I holds two rollouts.
+//!   −20 ln λ ≈ 24.1 at λ = 0.3) and multiplies the bound by 3 until I holds two rollouts.
 //!   **The code is followed** ([`RockstarConfig::near_radius`] is its λ_MD).
 //! * **The window.** `ROCKstar.m` searches I among the last 10n rollouts, the C++ code among
 //!   the last 5n. Here the window is the memory of `M` rollouts (see "Memory").
 //! * **Start points of the descent.** The paper says only "argmin". `ROCKstar.m` descends
 //!   from (1) θ*, (2) the cheapest rollout of I, (3) θ_N if r_N < C, and (4) the best
 //!   rollout ever seen if it is not in I, the last over *all* rollouts (with C their mean),
-//!   and keeps the end point of lowest J̃; the later C++ code descends from (2) only.
-//!   **`ROCKstar.m` is followed**; (4) runs over every remembered rollout, from the
-//!   [`Optimizer::best`] θ (which outlives its eviction from the memory).
+//!   and keeps the end point of lowest J̃; the C++ code descends from (2) only. Since its
+//!   March 2015 revision `ROCKstar.m` descends from (2)–(4) only when I holds at least 2n
+//!   rollouts (`if counter > n_parameter * 2`, `counter` being |I| + 1); the 2014 files
+//!   always did. **`ROCKstar.m` of 2015 is followed**, gate included
+//!   ([`RockstarConfig::extra_starts_from`]; with M < 2n the gate never opens); (4) runs
+//!   over every remembered rollout, from the [`Optimizer::best`] θ (which outlives its
+//!   eviction from the memory). Whether the gate matters is measured in the findings.
 //! * **Stopping the descent.** The paper stops on a short step in the Σ_ε metric (no
 //!   threshold given); the code also caps the iterations and stops once the point is more
 //!   than √2 (Σ_ε metric) from where the descent started, after taking that step. **The
@@ -122,6 +131,11 @@
 //!   `max_evaluations`.
 //!
 //! # Known limits
+//! The figures of this paragraph were measured with the earlier defaults (λ = 0.5, the
+//! extra start points at every update) and have not been re-measured; on the rotated 10-D
+//! ellipsoid of condition 10³ the current defaults end over ten times lower after 1 000
+//! rollouts (median θ* cost 2.6·10⁻⁴ against 6.0·10⁻³, seeds 0–9; findings in
+//! `experiments/findings/rockstar-arm.md`).
 //! On the rotated 10-D ellipsoid of condition 10⁴ (σ₀ = 0.1, memory 50, seeds 0–3), three
 //! runs reached a best cost below 10⁻⁶ within 2 800 rollouts and stopped with θ*'s cost
 //! below 10⁻⁶; the fourth stopped (σ ≤ 10⁻⁶) with θ*'s cost at 3·10⁻⁵ and never reached
@@ -151,16 +165,32 @@
 //! O(n³ + M·n²)/n on average for the refactoring every n updates, and O(s·|I|·n) for the
 //! descents, with s ≤ 4·81 passes over I (usually far fewer; on the sphere tests |I| holds
 //! about 15 rollouts whatever M). State: 4·(M·(n + 1) + 2n² + 9n) + 2M bytes and about
-//! 300 more: `size_of` is 10 600 B for `Rockstar<18, 90>` and 29 400 B for
-//! `Rockstar<31, 155>` on x86-64 (unit test `sizes`), 10 584 B and 29 380 B on thumbv7em.
-//! **M = 5n** (the C++ code's window) is the recommended size. On the 18- and 31-D spheres
-//! M = 2n, 3n, 5n and 10n made the same progress over 800 rollouts (the near set is
-//! small there); the larger memory is kept for noisy costs, where the regression is meant
-//! to average over the rollouts near θ* (not measured here). Host runs at
+//! 300 more: `size_of` is 10 608 B for `Rockstar<18, 90>` and 29 408 B for
+//! `Rockstar<31, 155>` on x86-64 (unit test `sizes`), 10 592 B and 29 392 B on thumbv7em.
+//! **M = 5n** (the C++ code's window) is the recommended size; with M < 2n the default gate
+//! never lets the extra start points run. On the 18- and 31-D spheres M = 2n, 3n, 5n and
+//! 10n made the same progress over 800 rollouts (the near set is small there; measured
+//! with the earlier defaults, λ = 0.5 and no gate); the larger memory is kept for noisy
+//! costs, where the regression is meant to average over the rollouts near θ* (not
+//! measured here). Host runs at
 //! n = 400–500 with M ≈ 5n hold several megabytes (7 MB for `Rockstar<500, 2500>`): keep
 //! the object in a `Box` or a `static`, and build it where the stack can hold it once (a
-//! thread with a large stack), since [`Rockstar::try_new`] returns it by value; the
-//! refactoring needs one n × n temporary on the stack (1 MB at n = 500, 3.8 kB at n = 31).
+//! thread with a large stack), since [`Rockstar::try_new`] returns it by value.
+//!
+//! # Stack
+//! Beyond the object itself a call needs O(n) bytes of stack, no n × n temporary: every
+//! matrix–vector product reads A and A⁻¹ by reference (nalgebra's `A * v` on a matrix held by
+//! value copies it first), the refactoring builds L in A⁻¹'s storage, the vectors of the
+//! descent are updated in place, and `ask`, `tell`, the update, its extra descents, its
+//! acceptance, the covariance update and the refactoring are separate (never inlined)
+//! functions, so that their temporaries are on the stack one branch at a time. Build the object where it is
+//! to stay and lend it (`&mut`): [`Rockstar::try_new`] must be inlined into the frame that
+//! holds the result (out of line it assembles the memory on its own stack, 20 KB at
+//! n = 31, and the result is copied). The `bench_rockstar` firmware (`Rockstar<31, 155>`,
+//! 29 392 B, in one frame, lent to the loop) peaks at 31 264 B of stack on the Cortex-M4F,
+//! 1 872 B above the object (58 956 B before these measures); the deepest paths are the
+//! construction (the box, the start and the configuration) and `tell` through the update
+//! and the acceptance of θ* into the covariance update.
 //!
 //! # Panic freedom
 //! The linear algebra is written out here (a Cholesky decomposition, a triangular solve and
@@ -177,6 +207,7 @@ use super::{Ledger, Optimizer, Status};
 use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
+use crate::vector::{identity, times, times_into};
 use crate::{Bounds, Error, Vector};
 
 /// σ never falls below this (the kernel width ϑσ² stays a normal f32).
@@ -234,6 +265,12 @@ pub struct RockstarConfig {
     pub near_radius: f32,
     /// Rollouts drawn around the start before the first update, 2 ≤ this ≤ M.
     pub initial_samples: u32,
+    /// The extra start points of the descent (the cheapest rollout of the near set, the
+    /// new rollout, the best rollout ever; θ* is always one) are used only when the near
+    /// set holds at least this many rollouts. `None` means 2n, the gate of the authors'
+    /// `ROCKstar.m` from its 2015 revision (it never opens when M < 2n); `Some(0)` uses
+    /// them at every update, as the 2014 revision did.
+    pub extra_starts_from: Option<u32>,
     /// g > 0 in γ = g/(C − r_min): ½ in the paper, 1 in the authors' code.
     pub step_gain: f32,
     /// The most steps of one natural-gradient descent (≥ 1).
@@ -263,15 +300,16 @@ pub struct RockstarConfig {
 }
 
 impl RockstarConfig {
-    /// The defaults of the module docs: σ₀ = 0.1, σ ≤ 1, λ = 0.5, λ_MD = 10, two initial
-    /// samples, g = ½, 80 descent steps, trust radius √2, step tolerance 0.01, κ = 1.5, ζ,
+    /// The defaults of the module docs: σ₀ = 0.1, σ ≤ 1, λ = 0.3, λ_MD = 10, two initial
+    /// samples, extra descent starts from a near set of 2n, g = ½, 80 descent steps, trust radius √2, step tolerance 0.01, κ = 1.5, ζ,
     /// ξ, c_c, c_cov from n, tolerance 10⁻⁶, no budget limit.
     pub const DEFAULT: Self = Self {
         initial_sigma: 0.1,
         max_sigma: 1.0,
-        lambda: 0.5,
+        lambda: 0.3,
         near_radius: 10.0,
         initial_samples: 2,
+        extra_starts_from: None,
         step_gain: 0.5,
         descent_iterations: 80,
         trust_radius: core::f32::consts::SQRT_2,
@@ -372,15 +410,6 @@ struct Regression {
     scale: f32,
 }
 
-/// The kernel sums of eq. 2 and 5 at one point, in normalised costs: J̃_ρ = a/b,
-/// b = Σ e_i + 1, and Σ e_i d_i, Σ e_i ρ_i d_i with d_i = w_i − w.
-struct Sums<const N: usize> {
-    value: f32,
-    weight: f32,
-    toward: Vector<N>,
-    toward_cost: Vector<N>,
-}
-
 /// ROCK* over a box with a memory of `M` rollouts, as a resumable ask/tell state machine
 /// (see the [module docs](self) for the algorithm, its defaults and its deviations).
 ///
@@ -466,6 +495,9 @@ pub struct Rockstar<const N: usize, const M: usize> {
 impl<const N: usize, const M: usize> Rockstar<N, M> {
     /// A search starting at θ* = `start` (finite and inside `bounds`) with Σ = σ₀² I in
     /// normalised units (σ₀ = `config.initial_sigma` relative to each half-width).
+    ///
+    /// The object is large (about 4·M·n bytes): call this where it is to stay, and lend it
+    /// (module docs, "Stack").
     pub fn try_new(
         bounds: Bounds<N>,
         start: Vector<N>,
@@ -480,7 +512,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         let constants = Constants::new(N, &config)?;
         bounds.check(&start, "start")?;
         let unit = UnitMap::new(bounds);
-        let x = clamp_unit(&unit.unit_of(&start));
+        let x = clamp_unit(unit.unit_of(&start));
         Ok(Self {
             config,
             constants,
@@ -488,8 +520,9 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             theta_star: x,
             theta_star_white: x,
             sigma: config.initial_sigma,
-            factor: SMatrix::identity(),
-            inverse: SMatrix::identity(),
+            // Constants, copied straight into place (see `Cmaes::try_new`).
+            factor: const { identity::<N>() },
+            inverse: const { identity::<N>() },
             path: Vector::zeros(),
             samples: [const { crate::vector::zero::<N>() }; M],
             costs: [0.0; M],
@@ -561,7 +594,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             let k = (start + j) % M;
             let w = self.samples.get(k)?;
             Some((
-                self.unit.theta_of(&clamp_unit(&(self.factor * w))),
+                self.unit.theta_of(&clamp_unit(times(&self.factor, w))),
                 *self.costs.get(k)?,
             ))
         })
@@ -596,9 +629,9 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     }
 
     /// The newest remembered rollout, whitened.
-    fn newest(&self) -> Option<Vector<N>> {
+    fn newest(&self) -> Option<&Vector<N>> {
         (self.len > 0)
-            .then(|| self.samples.get((self.head + M - 1) % M).copied())
+            .then(|| self.samples.get((self.head + M - 1) % M))
             .flatten()
     }
 
@@ -621,7 +654,6 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     /// Selects the near set I around θ* (eq. 3, with the code's radius and widening);
     /// returns the index of its cheapest rollout.
     fn select_near(&mut self) -> Option<usize> {
-        let centre = self.theta_star_white;
         let need = self.len.min(2);
         let sigma2 = self.sigma * self.sigma;
         let mut bound = (self.constants.near_bound * sigma2).max(f32::MIN_POSITIVE);
@@ -629,7 +661,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         let mut within = 0;
         let mut smallest = [f32::INFINITY; 2];
         for w in self.samples.iter().take(self.len) {
-            let d = (w - centre).norm_squared();
+            let d = distance2(w, &self.theta_star_white);
             if d < bound {
                 within += 1;
             }
@@ -649,17 +681,17 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
                 widenings += 1;
             }
         }
-        let mut cheapest = self.near_where(|w: &Vector<N>| (w - centre).norm_squared() < bound);
+        let mut cheapest = self.near_where(Some(bound));
         if self.near_len < need {
             // Distances beyond f32 (a degenerate shape): regress on everything remembered.
-            cheapest = self.near_where(|_| true);
+            cheapest = self.near_where(None);
         }
         cheapest.map(|(i, _)| i)
     }
 
-    /// Makes the near set the remembered rollouts whose whitened sample passes `inside`;
-    /// returns the cheapest of them (index and cost).
-    fn near_where(&mut self, inside: impl Fn(&Vector<N>) -> bool) -> Option<(usize, f32)> {
+    /// Makes the near set the remembered rollouts whose squared whitened distance to θ* is
+    /// below `bound` (every one if `None`); returns the cheapest of them (index and cost).
+    fn near_where(&mut self, bound: Option<f32>) -> Option<(usize, f32)> {
         self.near_len = 0;
         let mut cheapest: Option<(usize, f32)> = None;
         for (i, (w, &c)) in self
@@ -669,7 +701,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             .take(self.len)
             .enumerate()
         {
-            if inside(w)
+            if bound.is_none_or(|b| distance2(w, &self.theta_star_white) < b)
                 && let Some(slot) = self.near.get_mut(self.near_len)
             {
                 *slot = i as u16;
@@ -700,30 +732,41 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         Regression { floor, scale }
     }
 
-    /// The kernel sums at the whitened point `w` over `set`; `inv_h2` = 1/(ϑσ²).
-    fn sums(&self, set: Set, reg: &Regression, w: &Vector<N>, inv_h2: f32) -> Sums<N> {
+    /// The kernel sums of eq. 2 and 5 at the whitened point `w` over `set`, in normalised
+    /// costs (`inv_h2` = 1/(ϑσ²)): returns J̃_ρ = a/b and b = Σ e_i + 1, and writes
+    /// Σ e_i d_i into `toward` and Σ e_i ρ_i d_i into `toward_cost` (d_i = w_i − w; the
+    /// caller's vectors, so that the descent holds no copies of them).
+    fn sums(
+        &self,
+        set: Set,
+        reg: &Regression,
+        w: &Vector<N>,
+        inv_h2: f32,
+        toward: &mut Vector<N>,
+        toward_cost: &mut Vector<N>,
+    ) -> (f32, f32) {
         // The prior term of eq. 2: C (ρ = 1) with weight 1.
         let (mut a, mut b) = (1.0f32, 1.0f32);
-        let mut toward = Vector::<N>::zeros();
-        let mut toward_cost = Vector::<N>::zeros();
+        toward.fill(0.0);
+        toward_cost.fill(0.0);
         for (s, r) in self.members(set) {
-            let d = s - w;
             // exp(−½ dᵀ (2Σ_ε)⁻¹ d), in whitened units dᵀ Σ_ε⁻¹ d = ‖d‖²/(ϑσ²).
-            let e = libm::expf(-0.25 * (d.norm_squared() * inv_h2));
+            let e = libm::expf(-0.25 * (distance2(s, w) * inv_h2));
             if e > 0.0 {
                 let rho = (0.5 * r - reg.floor) / reg.scale;
                 a += e * rho;
                 b += e;
-                toward.axpy(e, &d, 1.0);
-                toward_cost.axpy(e * rho, &d, 1.0);
+                // d = s − w element by element, not as a vector on the stack.
+                let (e_rho, ends) = (e * rho, s.iter().zip(w.iter()));
+                for ((t, c), (s_i, w_i)) in toward.iter_mut().zip(toward_cost.iter_mut()).zip(ends)
+                {
+                    let d = s_i - w_i;
+                    *t += e * d;
+                    *c += e_rho * d;
+                }
             }
         }
-        Sums {
-            value: a / b,
-            weight: b,
-            toward,
-            toward_cost,
-        }
+        (a / b, b)
     }
 
     /// One natural-gradient descent of J̃ over `set` from the whitened `start` (eq. 5 with
@@ -741,22 +784,29 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         // (γ/2) Σ_i e_i (J̃ − r_i) d_i / b; with normalised costs γ(C − r_min) = g.
         let gain = 0.5 * self.config.step_gain;
         let mut w = *start;
+        // Every vector below is updated in place: on a microcontroller each temporary is
+        // 4n bytes of stack. `next` first holds Σ e_i d_i.
+        let (mut next, mut toward_cost) = (Vector::<N>::zeros(), Vector::<N>::zeros());
         let mut done = false;
         let mut steps = 0;
         loop {
-            let s = self.sums(set, reg, &w, inv_h2);
+            let (value, weight) = self.sums(set, reg, &w, inv_h2, &mut next, &mut toward_cost);
             if done || steps >= self.config.descent_iterations {
-                return (w, reg.floor + s.value * reg.scale);
+                return (w, reg.floor + value * reg.scale);
             }
-            let step = (s.toward * s.value - s.toward_cost) * (gain / s.weight);
-            let mut next = w + step;
-            let off = next - start;
-            let off2 = off.norm_squared();
+            // next = w + (toward J̃ − toward_cost) g/(2b).
+            next *= value;
+            next -= &toward_cost;
+            next *= gain / weight;
+            next += &w;
+            let off2 = distance2(&next, start);
             if off2 > trust2 {
-                next = start + off * libm::sqrtf(trust2 / off2);
+                next -= start;
+                next *= libm::sqrtf(trust2 / off2);
+                next += start;
                 done = true;
             }
-            if (next - w).norm_squared() < tol2 {
+            if distance2(&next, &w) < tol2 {
                 done = true;
             }
             if next.iter().any(|v| !v.is_finite()) {
@@ -768,7 +818,10 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         }
     }
 
-    /// Steps 2–6 of the module docs after the rollout (`cost`) just remembered.
+    /// Steps 2–4 of the module docs after the rollout (`cost`) just remembered, then
+    /// [`Self::accept`] (steps 4–6).
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
     fn update(&mut self, cost: f32, previous: f32) {
         if !(is_finite(&self.factor) && is_finite(&self.inverse)) {
             self.recover();
@@ -786,42 +839,46 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
 
         let cheapest = self.select_near();
         let near = self.regression(Set::Near);
-        // Start points of `ROCKstar.m`: θ*, the cheapest near rollout, the new rollout if
-        // it beats C, the best rollout ever if it is not in the near set.
+        // Start points of `ROCKstar.m`: θ*; then, once the near set is large enough (its
+        // gate), the cheapest near rollout, the new rollout if it beats C, the best rollout
+        // ever if it is not in the near set.
         let mut best = self.descend(Set::Near, &near, &self.theta_star_white, h2);
-        let consider = |candidate: (Vector<N>, f32), best: &mut (Vector<N>, f32)| {
-            if candidate.1 < best.1 {
-                *best = candidate;
-            }
-        };
-        if let Some(w) = cheapest.and_then(|i| self.samples.get(i)) {
-            consider(self.descend(Set::Near, &near, w, h2), &mut best);
-        }
-        if 0.5 * cost < near.floor + near.scale
-            && let Some(w) = self.newest()
-        {
-            consider(self.descend(Set::Near, &near, &w, h2), &mut best);
-        }
-        if let Some(ever) = self.ledger.best()
-            && 0.5 * ever.cost < near.floor
-        {
-            let x = clamp_unit(&self.unit.unit_of(&ever.theta));
-            let w = self.inverse * x;
-            let all = self.regression(Set::All);
-            consider(self.descend(Set::All, &all, &w, h2), &mut best);
+        if self.near_len >= self.extra_starts_from() {
+            self.descend_from_near_starts(cheapest, cost, &near, h2, &mut best);
+            self.descend_from_best_ever(&near, h2, &mut best);
         }
 
-        let x = self.factor * best.0;
-        if x.iter().all(|v| v.is_finite()) {
-            let x = clamp_unit(&x);
-            let w = self.inverse * x;
-            let delta = w - self.theta_star_white;
-            self.theta_star = x;
-            self.theta_star_white = w;
+        self.accept(&best, cost, previous);
+        // Every n covariance updates; here rather than in `adapt_shape`, so that the two
+        // frames are not on the stack together (module docs, "Stack").
+        if self.since_refactor >= N as u32 {
+            self.since_refactor = 0;
+            if !self.refactor() {
+                self.recover();
+            }
+        }
+    }
+
+    /// Steps 4–6 after the descents: θ* ← the end point `best` (whitened, J̃/2), the
+    /// covariance update and the σ rule.
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
+    fn accept(&mut self, best: &(Vector<N>, f32), cost: f32, previous: f32) {
+        let sigma = self.sigma;
+        // One vector on the stack: x = A w_best, then A⁻¹θ*, then A⁻¹Δθ.
+        let mut v = times(&self.factor, &best.0);
+        if v.iter().all(|v| v.is_finite()) {
+            self.theta_star = clamp_unit(v);
+            times_into(&self.inverse, &self.theta_star, &mut v);
+            // A⁻¹Δθ = A⁻¹θ*_new − A⁻¹θ*_old, formed in the old value's place.
+            core::mem::swap(&mut v, &mut self.theta_star_white);
+            let mut delta = v;
+            delta.zip_apply(&self.theta_star_white, |d, w| *d = w - *d);
             self.estimate = Some((2.0 * best.1).clamp(-f32::MAX, f32::MAX));
             // √(Δθᵀ Σ⁻¹ Δθ) = ‖A⁻¹Δθ‖/σ.
             if delta.norm() < self.constants.path_bound * sigma {
-                self.adapt_shape(&(delta / sigma));
+                delta /= sigma;
+                self.adapt_shape(&delta);
             }
         } else {
             self.recover();
@@ -838,6 +895,51 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         }
     }
 
+    /// The near set's size from which the extra start points are used
+    /// ([`RockstarConfig::extra_starts_from`]; 2n by default).
+    fn extra_starts_from(&self) -> usize {
+        self.config.extra_starts_from.map_or(2 * N, |k| k as usize)
+    }
+
+    /// Descends from the extra start points of `ROCKstar.m` in the near set (the cheapest
+    /// near rollout `cheapest`, the new rollout if its `cost` beats C) and keeps in `best`
+    /// the end point of lowest J̃.
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
+    fn descend_from_near_starts(
+        &self,
+        cheapest: Option<usize>,
+        cost: f32,
+        near: &Regression,
+        h2: f32,
+        best: &mut (Vector<N>, f32),
+    ) {
+        if let Some(w) = cheapest.and_then(|i| self.samples.get(i)) {
+            keep_lower(best, self.descend(Set::Near, near, w, h2));
+        }
+        if 0.5 * cost < near.floor + near.scale
+            && let Some(w) = self.newest()
+        {
+            keep_lower(best, self.descend(Set::Near, near, w, h2));
+        }
+    }
+
+    /// Descends from the best rollout ever if it is cheaper than the near set's cheapest
+    /// (`near`), over every remembered rollout, and keeps in `best` the end point of lowest
+    /// J̃ (the last extra start point of `ROCKstar.m`).
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
+    fn descend_from_best_ever(&self, near: &Regression, h2: f32, best: &mut (Vector<N>, f32)) {
+        if let Some(ever) = self.ledger.best()
+            && 0.5 * ever.cost < near.floor
+        {
+            let x = clamp_unit(self.unit.unit_of(&ever.theta));
+            let w = times(&self.inverse, &x);
+            let all = self.regression(Set::All);
+            keep_lower(best, self.descend(Set::All, &all, &w, h2));
+        }
+    }
+
     /// P_c ← (1 − c_c) P_c + c_c Δθ/σ and the rank-one update of Σ_u with det Σ_u kept
     /// (`step` = A⁻¹Δθ/σ). In the factored form Σ_u = A Aᵀ, with z = A⁻¹P_c and
     /// t = (c_cov/(1 − c_cov)) ‖z‖², g = 1 + t:
@@ -845,6 +947,8 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     /// A⁻¹ ← g^{1/(2n)} (A⁻¹ − ((1 − 1/√g)/‖z‖²) z (zᵀ A⁻¹)),
     /// which is (1 − c_cov) Σ_u + c_cov P_c P_cᵀ rescaled to det = 1 exactly; every whitened
     /// vector w = A⁻¹x follows in O(n).
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
     fn adapt_shape(&mut self, step: &Vector<N>) {
         let k = self.constants;
         let z = self.path * (1.0 - k.c_c) + step * k.c_c;
@@ -859,7 +963,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         let shrink = -libm::expm1f(-0.5 * log_g) / zz; // (1 − 1/√g)/‖z‖²
         let volume = libm::expf(log_g / (2 * N) as f32); // g^{1/(2n)}
 
-        let az = self.factor * z;
+        let az = times(&self.factor, &z);
         let zt_inv = self.inverse.tr_mul(&z); // (zᵀ A⁻¹)ᵀ
         let usable = |v: &Vector<N>| v.iter().all(|x| x.is_finite());
         if !(usable(&az) && usable(&zt_inv) && grow.is_finite() && volume.is_finite()) {
@@ -882,42 +986,43 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         move_white(&mut self.path);
         self.covariance_updates = self.covariance_updates.saturating_add(1);
         self.since_refactor += 1;
-        if self.since_refactor >= N as u32 {
-            self.since_refactor = 0;
-            if !self.refactor() {
-                self.recover();
-            }
-        }
     }
 
-    /// A ← s L with L = chol(A Aᵀ) and s = det(L)^{−1/n}, A⁻¹ ← L⁻¹/s, every whitened vector
-    /// w ← (s L)⁻¹ A w; `false` (nothing changed) when A Aᵀ is not numerically positive
-    /// definite. One N × N temporary (the stack matters on a microcontroller).
+    /// A ← s L with L = chol(A Aᵀ) and s = det(L)^{−1/n}, A⁻¹ ← (s L)⁻¹, every whitened
+    /// vector w ← (s L)⁻¹ A w; `false` when A Aᵀ is not numerically positive definite (A
+    /// and the whitened vectors unchanged, A⁻¹ overwritten: the caller resets the shape).
+    /// No N × N temporary (3.8 KB at n = 31, on a microcontroller's stack): L is built in
+    /// A⁻¹'s storage, since A⁻¹ is recomputed from it.
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
     fn refactor(&mut self) -> bool {
-        let mut l = gram(&self.factor);
-        if !cholesky_in_place(&mut l) {
+        gram_into(&self.factor, &mut self.inverse);
+        if !cholesky_in_place(&mut self.inverse) {
             return false;
         }
-        let half_log_det: f32 = l.diagonal().iter().map(|d| libm::logf(*d)).sum();
+        let l = &self.inverse;
+        let half_log_det: f32 = (0..N).map(|i| libm::logf(l[(i, i)])).sum();
         let scale = libm::expf(-half_log_det / N as f32);
         if !(scale.is_finite() && scale > 0.0) {
             return false;
         }
         let factor = &self.factor;
         let rewhiten = |w: &mut Vector<N>| {
-            let mut x = factor * *w;
-            solve_lower(&l, &mut x);
+            let mut x = times(factor, w);
+            solve_lower(l, &mut x);
             *w = x * (1.0 / scale);
         };
         for w in self.samples.iter_mut().take(self.len) {
             rewhiten(w);
         }
         rewhiten(&mut self.path);
-        lower_inverse_into(&l, &mut self.inverse);
-        self.inverse *= 1.0 / scale;
-        l *= scale;
-        self.factor = l;
-        self.theta_star_white = self.inverse * self.theta_star;
+        for j in 0..N {
+            for i in 0..N {
+                self.factor[(i, j)] = if i < j { 0.0 } else { scale * l[(i, j)] };
+            }
+        }
+        lower_inverse_into(&self.factor, &mut self.inverse);
+        self.theta_star_white = times(&self.inverse, &self.theta_star);
         if !(is_finite(&self.factor) && is_finite(&self.inverse)) {
             self.recover();
         }
@@ -932,18 +1037,19 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
             .samples
             .iter()
             .take(self.len)
-            .all(|w| (factor * w).iter().all(|v| v.is_finite()));
+            .all(|w| times(factor, w).iter().all(|v| v.is_finite()));
         if placed {
             for w in self.samples.iter_mut().take(self.len) {
-                *w = clamp_unit(&(factor * *w));
+                *w = clamp_unit(times(factor, w));
             }
         } else {
             self.len = 0;
             self.head = 0;
         }
         self.near_len = 0;
-        self.factor = SMatrix::identity();
-        self.inverse = SMatrix::identity();
+        // In place: `= SMatrix::identity()` builds each matrix on the stack first.
+        self.factor.fill_with_identity();
+        self.inverse.fill_with_identity();
         self.path = Vector::zeros();
         self.theta_star_white = self.theta_star;
         self.since_refactor = 0;
@@ -1004,19 +1110,23 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
 }
 
 impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
+    // Out of line: module docs, "Stack".
+    #[inline(never)]
     fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
-        let z = normal_vector_f32(rng);
-        let x = self.theta_star + self.factor * z * self.sigma;
-        let projected = clamp_unit(&x);
-        self.drawn = projected;
-        self.drawn_white = self.inverse * projected;
-        let theta = self.unit.theta_of(&projected);
+        // x = θ* + σ A z, in place.
+        let mut x = times(&self.factor, &normal_vector_f32(rng));
+        x *= self.sigma;
+        x += &self.theta_star;
+        self.drawn = clamp_unit(x);
+        self.drawn_white = times(&self.inverse, &self.drawn);
+        let theta = self.unit.theta_of(&self.drawn);
         Ok(self.ledger.hand_out(theta, &self.unit.bounds))
     }
 
+    #[inline(never)]
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
         self.ledger.accept(cost)?;
         self.remember(self.drawn_white, cost);
@@ -1033,20 +1143,32 @@ impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
     ledger_accessors!(unit.bounds);
 }
 
-/// `x` projected onto [−1, 1]ⁿ; NaN maps to −1.
-fn clamp_unit<const N: usize>(x: &Vector<N>) -> Vector<N> {
+/// `x` projected onto [−1, 1]ⁿ; NaN maps to −1. (By value and in place: no second vector.)
+fn clamp_unit<const N: usize>(mut x: Vector<N>) -> Vector<N> {
     // `clamp`'s `min <= max` assertion holds for these constants and is optimised away.
-    x.map(|v| if v.is_nan() { -1.0 } else { v.clamp(-1.0, 1.0) })
+    x.apply(|v| *v = if v.is_nan() { -1.0 } else { v.clamp(-1.0, 1.0) });
+    x
+}
+
+/// `best` ← `candidate` if the candidate's J̃ (its second element) is lower.
+fn keep_lower<const N: usize>(best: &mut (Vector<N>, f32), candidate: (Vector<N>, f32)) {
+    if candidate.1 < best.1 {
+        *best = candidate;
+    }
+}
+
+/// ‖a − b‖², without the difference as a temporary.
+fn distance2<const N: usize>(a: &Vector<N>, b: &Vector<N>) -> f32 {
+    a.iter().zip(b.iter()).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
 fn is_finite<const N: usize>(m: &SMatrix<f32, N, N>) -> bool {
     m.iter().all(|v| v.is_finite())
 }
 
-/// The lower triangle of A Aᵀ (the upper one is left at zero). Written out: no transposed
-/// copy of A, and no temporary beyond the result.
-fn gram<const N: usize>(a: &SMatrix<f32, N, N>) -> SMatrix<f32, N, N> {
-    let mut s = SMatrix::<f32, N, N>::zeros();
+/// Writes the lower triangle of A Aᵀ into `s` (its upper triangle is left as it was: the
+/// routines below read only the lower one). Written out: no transposed copy of A.
+fn gram_into<const N: usize>(a: &SMatrix<f32, N, N>, s: &mut SMatrix<f32, N, N>) {
     for j in 0..N {
         for i in j..N {
             let mut v = 0.0;
@@ -1056,7 +1178,6 @@ fn gram<const N: usize>(a: &SMatrix<f32, N, N>) -> SMatrix<f32, N, N> {
             s[(i, j)] = v;
         }
     }
-    s
 }
 
 /// Overwrites the lower triangle of the symmetric `m` (only that triangle is read) with L,
@@ -1210,7 +1331,7 @@ mod tests {
     }
 
     /// Checks the strategy constants against the authors' formulas in f64 for n = 31 and
-    /// n = 3 with λ = 0.5: ϑ = −P(0.95, n)/(2 ln λ) and λ_MD·P(0.95, n) (to the χ²
+    /// n = 3 with the default λ = 0.3: ϑ = −P(0.95, n)/(2 ln λ) and λ_MD·P(0.95, n) (to the χ²
     /// approximation's accuracy), κ χ̂_n, c_c, c_cov, ζ = 1.3^{1/ln(n + 2.5)}, ξ = ζ^{0.3}
     /// (to 1e-5); and that explicit ζ, ξ, c_c, c_cov are taken as given.
     #[test]
@@ -1220,7 +1341,7 @@ mod tests {
             let nf = n as f64;
             let close = |a: f32, b: f64, tol: f64| (f64::from(a) - b).abs() <= tol * b.abs();
             assert!(
-                close(k.kernel, -p / (2.0 * 0.5f64.ln()), 6e-3),
+                close(k.kernel, -p / (2.0 * 0.3f64.ln()), 6e-3),
                 "{}",
                 k.kernel
             );
@@ -1338,6 +1459,44 @@ mod tests {
         let ratio = (log_ratio / 8.0).exp();
         assert!(wins >= 7, "{wins} of 8");
         assert!(ratio < 0.25, "geometric mean ratio {ratio}");
+    }
+
+    /// Checks the gate on the extra start points (`ROCKstar.m` of 2015): on the 3-D sphere
+    /// (memory 15, seed 2, 300 rollouts), each rollout is told to the search and to two
+    /// clones of it made just before, one that always uses the extra start points and one
+    /// that never does. With the default gate (2n = 6) the update's θ* equals the never
+    /// clone's whenever the near set holds fewer than 6 rollouts, and the always clone's
+    /// otherwise; both cases occur, and in both the two clones differ at least once (so
+    /// the extra start points do change θ*).
+    #[test]
+    fn extra_starts_wait_for_a_near_set_of_2n() {
+        let (_, mut rock) = from_origin::<3, 15>(config(300));
+        assert_eq!(rock.extra_starts_from(), 6);
+        let mut r = rng(2);
+        let (mut closed, mut open) = ((0, 0), (0, 0));
+        while let Ok(t) = rock.ask(&mut r) {
+            let (mut always, mut never) = (rock.clone(), rock.clone());
+            always.config.extra_starts_from = Some(0);
+            never.config.extra_starts_from = Some(u32::MAX);
+            for search in [&mut rock, &mut always, &mut never] {
+                search.tell(sphere(&t)).unwrap();
+            }
+            if rock.updates() == 0 {
+                continue;
+            }
+            let differ = usize::from(always.theta_star != never.theta_star);
+            if rock.near_len < 6 {
+                assert_eq!(rock.theta_star, never.theta_star, "{}", rock.evaluations());
+                closed = (closed.0 + 1, closed.1 + differ);
+            } else {
+                assert_eq!(rock.theta_star, always.theta_star, "{}", rock.evaluations());
+                open = (open.0 + 1, open.1 + differ);
+            }
+        }
+        assert!(
+            closed.1 > 0 && open.1 > 0,
+            "closed {closed:?}, open {open:?}"
+        );
     }
 
     /// Checks the paper's g = ½ against the code's g = 1 (γ = g/(C − r_min)): with g = 1
@@ -1653,16 +1812,18 @@ mod tests {
         assert!(rock.best().unwrap().cost < 1e-6);
     }
 
-    /// Checks recovery from a singular shape: a factor whose first column is zero (finite,
-    /// but A Aᵀ is not positive definite) fails the next refactoring's Cholesky
-    /// decomposition; the shape is reset to I, the remembered rollouts keep their positions
-    /// (A w is finite), and the sphere is still minimised.
+    /// Checks recovery from a singular shape: a factor whose first row is zero (finite, but
+    /// A Aᵀ has a zero row, which the rank-one updates A + (A z)·(…)ᵀ keep, so it is not
+    /// positive definite) fails the next refactoring's Cholesky decomposition with a zero
+    /// pivot; the shape is reset to I, the remembered rollouts keep their positions (A w is
+    /// finite), and the sphere is still minimised. (A zero column, used before, is repaired
+    /// by the first rank-one update, so whether a refactoring failed was up to rounding.)
     #[test]
     fn recovers_from_a_singular_shape() {
         let (bounds, mut rock) = from_origin::<4, 16>(config(2000));
         let mut r = rng(10);
         tell_inside(&mut rock, &bounds, &mut r, sphere, Some(40));
-        rock.factor.column_mut(0).fill(0.0);
+        rock.factor.row_mut(0).fill(0.0);
         let positions: std::vec::Vec<Vector<4>> = rock.memory().map(|(t, _)| t).collect();
         while rock.recoveries() == 0 {
             let t = rock.ask(&mut r).unwrap();
@@ -1778,8 +1939,8 @@ mod tests {
     /// `Rockstar<31, 155>` (M = 5n, the window of the authors' C++ code).
     #[test]
     fn sizes() {
-        assert_eq!(core::mem::size_of::<Rockstar<18, 90>>(), 10_600);
-        assert_eq!(core::mem::size_of::<Rockstar<31, 155>>(), 29_400);
+        assert_eq!(core::mem::size_of::<Rockstar<18, 90>>(), 10_608);
+        assert_eq!(core::mem::size_of::<Rockstar<31, 155>>(), 29_408);
     }
 
     fn any_cost() -> impl Strategy<Value = f32> {

@@ -30,22 +30,49 @@ const N_HOPPER: usize = 31;
 /// the memory full and evicting, and several refactorings of the covariance (every n).
 pub const MEASURED: u32 = 200;
 
+/// Builds `Rockstar<D, M>` with the defaults over the box `bounds` gives, from 0, and
+/// measures it. Never inlined: the optimizer lives in this frame only (kept in its
+/// `Result`, lent to [`measure`]), so the peak stack holds one copy of it.
+#[inline(never)]
+fn build_and_measure<const D: usize, const M: usize>(
+    counter: &mut Counter,
+    name: &str,
+    bounds: fn() -> Result<Bounds<D>, Error>,
+) -> Result<(), Error> {
+    let mut built = build::<D, M>(bounds);
+    let rock = built.as_mut().map_err(|e| *e)?;
+    measure(counter, name, rock)
+}
+
+/// The construction, out of line: its temporaries (the box, the configuration) are not in
+/// the frame that holds the optimizer while it runs; the optimizer itself is written into
+/// the caller's `Result`.
+#[inline(never)]
+fn build<const D: usize, const M: usize>(
+    bounds: fn() -> Result<Bounds<D>, Error>,
+) -> Result<Rockstar<D, M>, Error> {
+    bounds().and_then(|b| Rockstar::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT))
+}
+
+/// The hopping leg's box, [−1, 1]ⁿ.
+fn unit_box() -> Result<Bounds<N_HOPPER>, Error> {
+    Bounds::uniform(-1.0, 1.0)
+}
+
 /// Runs `MEASURED` ask/tell pairs of `rock` on the `D`-D ellipsoid, logging each call's
 /// instruction count as `footprint: sample {name}_ask = N` and `…_tell`.
 #[inline(never)]
 fn measure<const D: usize, const M: usize>(
     counter: &mut Counter,
     name: &str,
-    mut rock: Rockstar<D, M>,
+    rock: &mut Rockstar<D, M>,
 ) -> Result<(), Error> {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-    let ellipsoid = Ellipsoid::<D>::new();
     for _ in 0..MEASURED {
         if rock.status() != Status::Running {
             break;
         }
-        let (theta, ask) = counter.measure(|| rock.ask(&mut rng));
-        let cost = ellipsoid.eval(&theta?);
+        let (cost, ask) = ask_and_evaluate(counter, rock, &mut rng)?;
         let (told, tell) = counter.measure(|| rock.tell(cost));
         told?;
         defmt::info!("footprint: sample {=str}_ask = {=u32}", name, ask);
@@ -57,6 +84,19 @@ fn measure<const D: usize, const M: usize>(
         rock.evaluations()
     );
     Ok(())
+}
+
+/// One measured `ask` and the cost of its candidate on the `D`-D ellipsoid, with the
+/// `ask`'s instruction count. Out of line, and the ellipsoid (8n bytes) made here each
+/// time: neither it nor the candidate is in the frame that waits on `tell`.
+#[inline(never)]
+fn ask_and_evaluate<const D: usize, const M: usize>(
+    counter: &mut Counter,
+    rock: &mut Rockstar<D, M>,
+    rng: &mut Xoshiro128PlusPlus,
+) -> Result<(f32, u32), Error> {
+    let (theta, ask) = counter.measure(|| rock.ask(rng));
+    Ok((Ellipsoid::<D>::new().eval(&theta?), ask))
 }
 
 #[cortex_m_rt::entry]
@@ -73,14 +113,10 @@ fn main() -> ! {
         let ((), empty) = counter.measure(|| ());
         defmt::info!("footprint: sample empty = {=u32}", empty);
     }
-    let measured = auv::bounds()
-        .and_then(|b| Rockstar::<N, 90>::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT))
-        .and_then(|rock| measure(&mut counter, "rockstar", rock))
-        .and_then(|()| Bounds::uniform(-1.0, 1.0))
-        .and_then(|b| {
-            Rockstar::<N_HOPPER, 155>::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT)
-        })
-        .and_then(|rock| measure(&mut counter, "rockstar_hopper", rock));
+    let measured =
+        build_and_measure::<N, 90>(&mut counter, "rockstar", auv::bounds).and_then(|()| {
+            build_and_measure::<N_HOPPER, 155>(&mut counter, "rockstar_hopper", unit_box)
+        });
     if let Err(e) = measured {
         defmt::error!("benchmark failed: {}", e);
         exit_failure()

@@ -271,7 +271,7 @@ fn cmaes(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
 fn rockstar(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
     let config = RockstarConfig {
         initial_sigma: black_box(0.2),
-        lambda: black_box(0.5),
+        lambda: black_box(0.3),
         initial_samples: black_box(3),
         step_gain: black_box(0.5),
         descent_iterations: black_box(40),
