@@ -163,7 +163,7 @@ fn sphere<const N: usize>(theta: &Vector<N>, rng: &mut impl RngCore) -> f32 {
     cost.min(f32::MAX)
 }
 
-/// Up to `steps` asks and tells of `o` on [`sphere`], until it stops; every candidate must
+/// Up to `steps` asks and tells of `o` on `sphere`, until it stops; every candidate must
 /// be finite and inside the box, be the pending one, and be told without an error, and the
 /// best must stay finite and inside the box. Returns the steps run.
 pub fn run_optimizer<const N: usize, O: Optimizer<N>>(
@@ -263,7 +263,7 @@ fn round_trip<T: Persistent>(value: &T, when: &str) -> Result<Vec<u8>, String> {
     Ok(bytes)
 }
 
-/// The record of `o` after `steps` asks and tells on [`sphere`] and one more ask (so that
+/// The record of `o` after `steps` asks and tells on `sphere` and one more ask (so that
 /// a candidate is pending); every state on the way, after each ask and each tell, must load
 /// back as itself.
 pub fn mid_run<const N: usize, O: Optimizer<N> + Persistent>(
