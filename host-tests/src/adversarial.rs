@@ -12,7 +12,10 @@
 //!   answers with its error and leaves the whole optimizer unchanged (`Clone` + `PartialEq`);
 //! * `evaluations` counts the accepted tells, never beyond `max_evaluations`;
 //! * the best cost is the lowest cost told so far (so it never increases), its θ one of the
-//!   candidates told that cost;
+//!   candidates told that cost; for an optimizer whose costs come from changing conditions
+//!   ([`drive_in_conditions`], e.g. `TwoPhase`: a simulator, then the robot), the lowest
+//!   told in the current conditions, and until the first cost told in new conditions the
+//!   best of the conditions before;
 //! * `ask` fails only with [`Error::Stopped`]: when the status is not running, or when a
 //!   search finds no new point in its box and stops itself as converged (SRACOS and RACOS on
 //!   a box a few f32 steps wide), changing nothing else.
@@ -280,6 +283,9 @@ struct Model<const N: usize> {
     evaluations: u32,
     /// The lowest cost told and every candidate told exactly that cost.
     lowest: Option<(f32, Vec<Vector<N>>)>,
+    /// The conditions the optimizer measures in now, and whether nothing was told in them.
+    conditions: u8,
+    fresh_conditions: bool,
 }
 
 impl<const N: usize> Model<N> {
@@ -288,6 +294,8 @@ impl<const N: usize> Model<N> {
             pending: None,
             evaluations: 0,
             lowest: None,
+            conditions: 0,
+            fresh_conditions: false,
         }
     }
 }
@@ -299,7 +307,23 @@ impl<const N: usize> Model<N> {
 pub fn drive<const N: usize, O>(
     seed: u64,
     operations: u64,
+    build: impl FnMut(&mut DriverRng, Bounds<N>, u32) -> Result<O, Error>,
+) -> Result<Tally, Violation>
+where
+    O: Optimizer<N> + Clone + PartialEq + fmt::Debug,
+{
+    drive_in_conditions(seed, operations, build, |_| 0)
+}
+
+/// [`drive`] for an optimizer whose costs come from changing conditions: `conditions` names
+/// the ones it measures in now (e.g. a `TwoPhase`'s phase). When they change, costs told
+/// before no longer rank against costs told after: `best` must be the lowest cost told in
+/// the new conditions once one is, and until then the best of the conditions before.
+pub fn drive_in_conditions<const N: usize, O>(
+    seed: u64,
+    operations: u64,
     mut build: impl FnMut(&mut DriverRng, Bounds<N>, u32) -> Result<O, Error>,
+    conditions: impl Fn(&O) -> u8,
 ) -> Result<Tally, Violation>
 where
     O: Optimizer<N> + Clone + PartialEq + fmt::Debug,
@@ -337,6 +361,7 @@ where
             ));
         }
         let mut model = Model::<N>::new();
+        model.conditions = conditions(&o);
         let mut plateau = adversarial_cost(&mut rng, &Vector::<N>::zeros(), 1.0);
         if !plateau.is_finite() {
             plateau = 1.0;
@@ -436,11 +461,18 @@ where
                     let theta = model.pending.take().unwrap_or_else(Vector::zeros);
                     model.evaluations += 1;
                     match &mut model.lowest {
+                        _ if model.fresh_conditions => model.lowest = Some((cost, vec![theta])),
                         Some((c, thetas)) if cost == *c => thetas.push(theta),
                         Some((c, _)) if cost > *c => {}
                         _ => model.lowest = Some((cost, vec![theta])),
                     }
+                    model.fresh_conditions = false;
                 }
+            }
+            let now = conditions(&o);
+            if now != model.conditions {
+                model.conditions = now;
+                model.fresh_conditions = true;
             }
             // The state after every operation.
             if o.pending() != model.pending.as_ref() {

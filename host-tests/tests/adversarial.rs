@@ -18,13 +18,14 @@ use ctrl_adapt::controller::{
 use ctrl_adapt::cost::QuadraticCost;
 use ctrl_adapt::optimizer::{
     AnyOptimizer, Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch,
-    CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Racos,
+    CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Phase, Racos,
     Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase,
     Vector, Weighting,
 };
 use ctrl_adapt::record::Persistent;
 use host_tests::adversarial::{
-    ACTION_LIMIT, DriverRng, ENVELOPE, Tally, cap, count, drive, drive_adapter, field, point_in,
+    ACTION_LIMIT, DriverRng, ENVELOPE, Tally, cap, count, drive, drive_adapter,
+    drive_in_conditions, field, point_in,
 };
 use host_tests::forgery::{
     self, ForgedAdapter, Forgeries, adapter_mid_run, mid_run, run_adapter, run_optimizer,
@@ -116,17 +117,22 @@ fn controlled_random_search() {
 fn two_phase() {
     report(
         "TwoPhase<ControlledRandomSearch<3, 8>>",
-        drive(3, OPERATIONS, |rng, bounds, limit| {
-            // The two budgets add up to `limit`, which the driver checks.
-            let global_budget = limit / 2;
-            let global =
-                ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, u32::MAX))?;
-            let local = CoordinateConfig {
-                max_evaluations: limit - global_budget,
-                ..CoordinateConfig::DEFAULT
-            };
-            TwoPhase::try_new(global, global_budget, local)
-        }),
+        drive_in_conditions(
+            3,
+            OPERATIONS,
+            |rng, bounds, limit| {
+                // The two budgets add up to `limit`, which the driver checks.
+                let global_budget = limit / 2;
+                let global =
+                    ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, u32::MAX))?;
+                let local = CoordinateConfig {
+                    max_evaluations: limit - global_budget,
+                    ..CoordinateConfig::DEFAULT
+                };
+                TwoPhase::try_new(global, global_budget, local)
+            },
+            |two| u8::from(two.phase() == Phase::Local),
+        ),
     );
 }
 
