@@ -130,7 +130,11 @@ fn main() -> ! {
     // one measured here may take at most its state + 2 KB.
     let budget = core::mem::size_of::<Rockstar<N_HOPPER, 155>>() + STACK_BEYOND_STATE;
     if peak as usize > budget {
-        defmt::error!("peak stack {=u32} B exceeds state + 2 KB = {=usize} B", peak, budget);
+        defmt::error!(
+            "peak stack {=u32} B exceeds state + 2 KB = {=usize} B",
+            peak,
+            budget
+        );
         exit_failure()
     }
     exit_success()
