@@ -40,10 +40,12 @@ pub mod cem;
 pub mod cmaes;
 pub mod coordinate;
 pub mod crs;
+pub mod line_bo;
 pub mod rockstar;
 pub mod sracos;
 pub mod two_phase;
 
+mod cholesky;
 mod ledger;
 
 pub use any::AnyOptimizer;
@@ -51,6 +53,7 @@ pub use cem::{CemConfig, DiagonalCem, Weighting};
 pub use cmaes::{Cmaes, CmaesConfig};
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
 pub use crs::{ControlledRandomSearch, CrsConfig};
+pub use line_bo::{LineBo, LineBoConfig, LineDirections};
 pub use rockstar::{Rockstar, RockstarConfig};
 #[allow(deprecated)]
 pub use sracos::RacosConfig;

@@ -305,8 +305,8 @@ mod shapes {
     };
     use crate::cost::{ApexHeightCost, QuadraticCost, SurveyCost};
     use crate::optimizer::{
-        AnyOptimizer, Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Optimizer,
-        Racos, Rockstar, Sracos, TwoPhase,
+        AnyOptimizer, Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, LineBo,
+        Optimizer, Racos, Rockstar, Sracos, TwoPhase,
     };
     use crate::{Bounds, Vector};
 
@@ -381,10 +381,17 @@ mod shapes {
             self.check_decoded()
         }
     }
-    impl<const N: usize, const L: usize, const E: usize, const M: usize> Persistent
-        for AnyOptimizer<N, L, E, M>
+    impl<const N: usize, const M: usize> Persistent for LineBo<N, M> {
+        const SHAPE: Shape = Shape::new(*b"LNBO", &[N, M]);
+
+        fn validate(&self) -> Result<(), Error> {
+            self.check_decoded()
+        }
+    }
+    impl<const N: usize, const L: usize, const E: usize, const M: usize, const G: usize> Persistent
+        for AnyOptimizer<N, L, E, M, G>
     {
-        const SHAPE: Shape = Shape::new(*b"ANYO", &[N, L, E, M]);
+        const SHAPE: Shape = Shape::new(*b"ANYO", &[N, L, E, M, G]);
 
         fn validate(&self) -> Result<(), Error> {
             self.check_decoded()
@@ -503,8 +510,8 @@ mod tests {
     use super::*;
     use crate::optimizer::{
         AnyOptimizer, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-        CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, Rockstar, RockstarConfig,
-        Sracos, SracosConfig, Suppression, TwoPhase,
+        CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, LineDirections, Optimizer,
+        Racos, Rockstar, RockstarConfig, Sracos, SracosConfig, Suppression, TwoPhase,
     };
     use crate::random::unit_f32;
     use crate::testing::rng;
@@ -668,6 +675,20 @@ mod tests {
         let s =
             Rockstar::<3, 40>::try_new(bounds(), Vector::zeros(), RockstarConfig::DEFAULT).unwrap();
         check_resumes_bit_identically(s, 60, &CUTS);
+    }
+
+    /// LineBO (capacity 12, so the GP evicts from the 13th episode on) resumes bit for bit,
+    /// with random lines (the RNG is saved with it) and with a threshold, cut inside a
+    /// line, at its end and after eviction began.
+    #[test]
+    fn line_bo_resumes() {
+        let config = LineBoConfig {
+            directions: LineDirections::Random,
+            threshold: Some(1.0),
+            ..LineBoConfig::DEFAULT
+        };
+        let s = LineBo::<3, 12>::try_new(bounds(), Vector::zeros(), config).unwrap();
+        check_resumes_bit_identically(s, 40, &[0, 1, 3, 4, 12, 13, 25]);
     }
 
     /// The enum over the algorithms resumes bit for bit in each variant.

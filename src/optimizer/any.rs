@@ -9,8 +9,8 @@
 //! switch algorithms from a configuration value.
 
 use super::{
-    Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Optimizer, Rockstar, Sracos,
-    TwoPhase,
+    Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, LineBo, Optimizer, Rockstar,
+    Sracos, TwoPhase,
 };
 
 /// Forwards every method of [`Optimizer<N>`](crate::optimizer::Optimizer) to the
@@ -92,6 +92,9 @@ macro_rules! forward_optimizer {
 macro_rules! any_optimizer {
     ($(#[$enum_doc:meta])* ; $($(#[$doc:meta])* $variant:ident($ty:ty),)+) => {
         $(#[$enum_doc])*
+        // No heap to box the largest variant (LineBO's GP) into: the enum is as large as
+        // it, as the module docs say.
+        #[allow(clippy::large_enum_variant)]
         #[derive(Debug, Clone, PartialEq)]
         #[cfg_attr(feature = "defmt", derive(defmt::Format))]
         #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -100,19 +103,20 @@ macro_rules! any_optimizer {
             const L: usize = 12,
             const E: usize = 6,
             const M: usize = 100,
+            const G: usize = 64,
         > {
             $($(#[$doc])* $variant($ty),)+
         }
 
-        impl<const N: usize, const L: usize, const E: usize, const M: usize> Optimizer<N>
-            for AnyOptimizer<N, L, E, M>
+        impl<const N: usize, const L: usize, const E: usize, const M: usize, const G: usize>
+            Optimizer<N> for AnyOptimizer<N, L, E, M, G>
         {
             crate::forward_optimizer!($($variant),+);
         }
 
         #[cfg(feature = "serde")]
-        impl<const N: usize, const L: usize, const E: usize, const M: usize>
-            AnyOptimizer<N, L, E, M>
+        impl<const N: usize, const L: usize, const E: usize, const M: usize, const G: usize>
+            AnyOptimizer<N, L, E, M, G>
         {
             /// The checks of the variant's optimizer
             /// ([`Persistent::validate`](crate::record::Persistent)).
@@ -124,8 +128,8 @@ macro_rules! any_optimizer {
         }
 
         $(
-            impl<const N: usize, const L: usize, const E: usize, const M: usize> From<$ty>
-                for AnyOptimizer<N, L, E, M>
+            impl<const N: usize, const L: usize, const E: usize, const M: usize, const G: usize>
+                From<$ty> for AnyOptimizer<N, L, E, M, G>
             {
                 fn from(optimizer: $ty) -> Self {
                     Self::$variant(optimizer)
@@ -141,8 +145,9 @@ any_optimizer!(
     /// `N` parameters; `L` is the population of the diagonal CEM and of CMA-ES (the tutorial's
     /// default for n = 18 is 12, [`default_population`](super::cmaes::default_population)), `E`
     /// the CEM's elites, `M` the controlled random search's points (also the global phase of
-    /// [`TwoPhase`]) and the rollouts [`Rockstar`] remembers (5n is its recommended memory).
-    /// Each variant is built with its own `try_new`; `From` wraps it.
+    /// [`TwoPhase`]) and the rollouts [`Rockstar`] remembers (5n is its recommended memory),
+    /// `G` the episodes [`LineBo`]'s Gaussian process remembers (64, about 16 KB of its
+    /// Cholesky factor, is the recommendation at n = 18). Each variant is built with its own `try_new`; `From` wraps it.
     ///
     /// ```
     /// use ctrl_adapt::optimizer::{AnyOptimizer, CoordinateConfig, CoordinateSearch, Optimizer};
@@ -173,14 +178,16 @@ any_optimizer!(
     Cmaes(Cmaes<N, L>),
     /// [`Rockstar`] remembering `M` rollouts.
     Rockstar(Rockstar<N, M>),
+    /// [`LineBo`] remembering `G` episodes.
+    LineBo(LineBo<N, G>),
 );
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::optimizer::{
-        CemConfig, CmaesConfig, CoordinateConfig, CrsConfig, Racos, RockstarConfig, SracosConfig,
-        Status,
+        CemConfig, CmaesConfig, CoordinateConfig, CrsConfig, LineBoConfig, LineDirections, Racos,
+        RockstarConfig, SracosConfig, Status,
     };
     use crate::testing::check_tell_after;
     use crate::{Bounds, Error, Vector};
@@ -189,14 +196,23 @@ mod tests {
     use rand_xoshiro::Xoshiro128PlusPlus;
 
     /// Every optimizer of the enum at N = 3 with its default configuration (CMA-ES with and
-    /// without the active update), for the contract that does not depend on the algorithm.
-    fn every_optimizer() -> [AnyOptimizer<3, 4, 2, 5>; 8] {
+    /// without the active update, LineBO with and without a threshold and with random
+    /// lines), for the contract that does not depend on the algorithm.
+    fn every_optimizer() -> [AnyOptimizer<3, 4, 2, 5, 8>; 11] {
         let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
         let z = Vector::zeros();
         let crs = || ControlledRandomSearch::try_new(b, CrsConfig::DEFAULT).unwrap();
         let active = CmaesConfig {
             active: true,
             ..CmaesConfig::DEFAULT
+        };
+        let safe = LineBoConfig {
+            threshold: Some(0.0),
+            ..LineBoConfig::DEFAULT
+        };
+        let random = LineBoConfig {
+            directions: LineDirections::Random,
+            ..LineBoConfig::DEFAULT
         };
         [
             CoordinateSearch::try_new(b, z, CoordinateConfig::DEFAULT)
@@ -215,6 +231,9 @@ mod tests {
             Rockstar::try_new(b, z, RockstarConfig::DEFAULT)
                 .unwrap()
                 .into(),
+            LineBo::try_new(b, z, LineBoConfig::DEFAULT).unwrap().into(),
+            LineBo::try_new(b, z, safe).unwrap().into(),
+            LineBo::try_new(b, z, random).unwrap().into(),
         ]
     }
 
@@ -253,7 +272,7 @@ mod tests {
     fn forwards_every_method_to_the_variant() {
         let bounds = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
         let start = Vector::repeat(0.5);
-        let variants: [AnyOptimizer<3, 7, 3, 10>; 5] = [
+        let variants: [AnyOptimizer<3, 7, 3, 10, 16>; 6] = [
             CoordinateSearch::try_new(bounds, start, CoordinateConfig::DEFAULT)
                 .unwrap()
                 .into(),
@@ -267,6 +286,9 @@ mod tests {
                 .unwrap()
                 .into(),
             Rockstar::try_new(bounds, start, RockstarConfig::DEFAULT)
+                .unwrap()
+                .into(),
+            LineBo::try_new(bounds, start, LineBoConfig::DEFAULT)
                 .unwrap()
                 .into(),
         ];
@@ -284,6 +306,7 @@ mod tests {
                     AnyOptimizer::Cem(o) => o.ask(&mut rng_b),
                     AnyOptimizer::Cmaes(o) => o.ask(&mut rng_b),
                     AnyOptimizer::Rockstar(o) => o.ask(&mut rng_b),
+                    AnyOptimizer::LineBo(o) => o.ask(&mut rng_b),
                     _ => unreachable!(),
                 }
                 .unwrap();

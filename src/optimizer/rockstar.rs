@@ -193,7 +193,8 @@
 //! and the acceptance of θ* into the covariance update.
 //!
 //! # Panic freedom
-//! The linear algebra is written out here (a Cholesky decomposition, a triangular solve and
+//! The linear algebra is written out (a Cholesky decomposition and a triangular solve, shared
+//! with the line search's GP in `cholesky.rs`; a triangular
 //! inverse; matrix–vector products and rank-one updates from nalgebra's static-size
 //! operators) rather than taken from nalgebra's decompositions, whose panic sites LLVM does
 //! not always remove (see [`Cmaes`](super::Cmaes)); indices into the memory are checked
@@ -203,6 +204,7 @@
 use nalgebra::SMatrix;
 use rand_core::RngCore;
 
+use super::cholesky::{cholesky_in_place, solve_lower};
 use super::{Ledger, Optimizer, Status};
 use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
@@ -997,7 +999,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     #[inline(never)]
     fn refactor(&mut self) -> bool {
         gram_into(&self.factor, &mut self.inverse);
-        if !cholesky_in_place(&mut self.inverse) {
+        if !cholesky_in_place(&mut self.inverse, N, None) {
             return false;
         }
         let l = &self.inverse;
@@ -1009,7 +1011,7 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
         let factor = &self.factor;
         let rewhiten = |w: &mut Vector<N>| {
             let mut x = times(factor, w);
-            solve_lower(l, &mut x);
+            solve_lower(l, &mut x, N);
             *w = x * (1.0 / scale);
         };
         for w in self.samples.iter_mut().take(self.len) {
@@ -1177,44 +1179,6 @@ fn gram_into<const N: usize>(a: &SMatrix<f32, N, N>, s: &mut SMatrix<f32, N, N>)
             }
             s[(i, j)] = v;
         }
-    }
-}
-
-/// Overwrites the lower triangle of the symmetric `m` (only that triangle is read) with L,
-/// L Lᵀ = m; `false` when a pivot is not positive and finite (`m` not numerically positive
-/// definite), `m` then partly overwritten. Written out rather than nalgebra's `Cholesky`, so
-/// that no panic site of a general-size routine remains; every index is below N by the
-/// loop bounds.
-fn cholesky_in_place<const N: usize>(m: &mut SMatrix<f32, N, N>) -> bool {
-    for j in 0..N {
-        let mut pivot = m[(j, j)];
-        for k in 0..j {
-            pivot -= m[(j, k)] * m[(j, k)];
-        }
-        if !(pivot > 0.0 && pivot.is_finite()) {
-            return false;
-        }
-        let diagonal = libm::sqrtf(pivot);
-        m[(j, j)] = diagonal;
-        for i in j + 1..N {
-            let mut v = m[(i, j)];
-            for k in 0..j {
-                v -= m[(i, k)] * m[(j, k)];
-            }
-            m[(i, j)] = v / diagonal;
-        }
-    }
-    true
-}
-
-/// x ← L⁻¹ x for the lower triangle L of `l` (positive diagonal), by forward substitution.
-fn solve_lower<const N: usize>(l: &SMatrix<f32, N, N>, x: &mut Vector<N>) {
-    for i in 0..N {
-        let mut v = x[i];
-        for k in 0..i {
-            v -= l[(i, k)] * x[k];
-        }
-        x[i] = v / l[(i, i)];
     }
 }
 
