@@ -18,9 +18,9 @@ use ctrl_adapt::controller::{
 use ctrl_adapt::cost::QuadraticCost;
 use ctrl_adapt::optimizer::{
     AnyOptimizer, Best, Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch,
-    CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Phase, Racos,
-    Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase,
-    Vector, Weighting,
+    CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem, Error, LineBo, LineBoConfig,
+    LineDirections, Optimizer, Phase, Racos, Replacement, Rockstar, RockstarConfig, Sracos,
+    SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
 };
 use ctrl_adapt::record::Persistent;
 use host_tests::adversarial::{
@@ -247,6 +247,33 @@ fn rockstar() {
             };
             let start = point_in(rng, &bounds);
             Rockstar::<N, 15>::try_new(bounds, start, config)
+        }),
+    );
+}
+
+#[test]
+fn line_bo() {
+    report(
+        "LineBo<3, 12>",
+        drive(9, OPERATIONS, |rng, bounds, limit| {
+            let d = LineBoConfig::DEFAULT;
+            let config = LineBoConfig {
+                length_scale: field(rng, d.length_scale),
+                signal_variance: field(rng, d.signal_variance),
+                noise_variance: field(rng, d.noise_variance),
+                jitter: field(rng, d.jitter),
+                beta: field(rng, d.beta),
+                directions: if rng.next_u32().is_multiple_of(2) {
+                    LineDirections::Coordinate
+                } else {
+                    LineDirections::Random
+                },
+                evaluations_per_line: count(rng, d.evaluations_per_line),
+                threshold: (rng.next_u32().is_multiple_of(2)).then(|| field(rng, 1.0)),
+                max_evaluations: limit,
+            };
+            let start = point_in(rng, &bounds);
+            LineBo::<N, 12>::try_new(bounds, start, config)
         }),
     );
 }
@@ -515,6 +542,17 @@ fn forged_rockstar() {
     };
     let s = Rockstar::<2, 8>::try_new(unit_box(), Vector::zeros(), config).unwrap();
     forge("Rockstar<2, 8>", s);
+}
+
+#[test]
+fn forged_line_bo() {
+    let config = LineBoConfig {
+        threshold: Some(1.0),
+        directions: LineDirections::Random,
+        ..LineBoConfig::DEFAULT
+    };
+    let s = LineBo::<2, 6>::try_new(unit_box(), Vector::zeros(), config).unwrap();
+    forge("LineBo<2, 6>", s);
 }
 
 #[test]
