@@ -16,8 +16,8 @@
 use std::time::Instant;
 
 use ctrl_adapt::optimizer::{
-    Bounds, CmaesConfig, ControlledRandomSearch, CoordinateConfig, CrsConfig, Optimizer, Rockstar,
-    RockstarConfig, Sracos, SracosConfig, Status, Vector,
+    Bounds, CmaesConfig, ControlledRandomSearch, CoordinateConfig, CrsConfig, LineBo, LineBoConfig,
+    Optimizer, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Vector,
 };
 use host_tests::arm::{self, ViaPointArm};
 use host_tests::auv::{Auv, AuvConfig};
@@ -223,6 +223,13 @@ impl Trial {
         self.threshold
     }
 
+    /// The cost of the start θ in this trial's first episode, from a fresh copy of the
+    /// trial (not counted as an evaluation): the bare controller's cost, the reference of
+    /// the safety threshold ([`unsafe_threshold`]).
+    pub fn start_cost(&self) -> Option<f32> {
+        Trial::new(self.task, self.seed).score(&self.start)
+    }
+
     /// Episodes scored so far.
     pub fn evaluations(&self) -> u32 {
         self.evaluations
@@ -319,7 +326,49 @@ impl RunReport {
 }
 
 /// The library's methods of the comparison.
-pub const LIBRARY_METHODS: [&str; 5] = ["coordinate", "sracos", "crs", "cmaes", "rockstar"];
+pub const LIBRARY_METHODS: [&str; 7] = [
+    "coordinate",
+    "sracos",
+    "crs",
+    "cmaes",
+    "rockstar",
+    "linebo",
+    "linebo-safe",
+];
+
+/// An episode is unsafe when its cost exceeds the bare controller's (the start's, in the
+/// trial's first episode) by more than this fraction of it.
+pub const SAFETY_MARGIN: f32 = 0.2;
+
+/// The cost above which an episode of `trial` counts as unsafe: the bare controller's cost
+/// times 1 + [`SAFETY_MARGIN`]. `linebo-safe` is given it as its threshold.
+pub fn unsafe_threshold(trial: &Trial) -> Option<f32> {
+    Some(trial.start_cost()?.abs() * SAFETY_MARGIN + trial.start_cost()?)
+}
+
+/// LineBO's settings for a trial, by the rule of its docs: σ_f = the start's cost (a bad θ
+/// can double it), σ_n = 5 % of it, the GP remembering 64 episodes (its size on the
+/// microcontroller at n = 18); ℓ = 0.15 of the box, chosen on the AUV among 0.1–0.4
+/// (findings/line-bo.md). Without a threshold one episode per line (the LCB minimiser of
+/// each coordinate line, then on to the next: 14 episodes to success on most AUV seeds,
+/// against 27 to 44 with 2 or 3); with `safe`, the threshold of [`unsafe_threshold`] and
+/// three episodes per line, which SafeOpt needs to expand its safe set.
+pub fn line_bo_config(trial: &Trial, budget: u32, safe: bool) -> Option<LineBoConfig> {
+    let scale = trial.start_cost()?.abs().max(f32::MIN_POSITIVE.sqrt());
+    Some(LineBoConfig {
+        signal_variance: scale * scale,
+        noise_variance: (0.05 * scale) * (0.05 * scale),
+        length_scale: 0.15,
+        evaluations_per_line: if safe { 3 } else { 1 },
+        threshold: if safe {
+            Some(unsafe_threshold(trial)?)
+        } else {
+            None
+        },
+        max_evaluations: budget,
+        ..LineBoConfig::DEFAULT
+    })
+}
 
 /// Runs the library method `method` (one of [`LIBRARY_METHODS`]) on `trial` for `budget`
 /// episodes with the RNG seeded by `seed`; `None` for an unknown method.
@@ -423,6 +472,11 @@ fn run_n<const N: usize, const L: usize>(
                 ..RockstarConfig::DEFAULT
             };
             let o = Rockstar::<N, 160>::try_new(bounds, start, config).ok()?;
+            Some(drive(o, trial, budget, seed))
+        }
+        "linebo" | "linebo-safe" => {
+            let config = line_bo_config(trial, budget, method == "linebo-safe")?;
+            let o = LineBo::<N, 64>::try_new(bounds, start, config).ok()?;
             Some(drive(o, trial, budget, seed))
         }
         _ => None,

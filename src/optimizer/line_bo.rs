@@ -20,8 +20,8 @@
 //!    * **without a threshold**, GP-UCB for minimisation: the lowest lower confidence bound
 //!      l(x) = μ(x) − β σ(x);
 //!    * **with a threshold h**, SafeOpt on the line: the safe set S is the interval of grid
-//!      points around o whose upper bound u(x) = μ(x) + β σ(x) is ≤ h (o itself is safe
-//!      by assumption); the minimisers M = {x ∈ S : l(x) ≤ min_S u}; the expanders G, the
+//!      points around o whose upper bound u(x) = μ(x) + β σ(x) is ≤ h (θ⁰ is safe by
+//!      assumption); the minimisers M = {x ∈ S : l(x) ≤ min_S u}; the expanders G, the
 //!      points of S whose optimistic observation (a fictitious cost l(x) at x) would bring
 //!      the upper bound of an unsafe neighbour of S to ≤ h; the episode goes to the point of
 //!      M ∪ G with the widest interval u − l.
@@ -36,9 +36,10 @@
 //! guarantee is about the *latent* cost, the noise-free mean of an episode: a single noisy
 //! episode can exceed h. It is void when the kernel is misspecified (a length scale longer
 //! than the cost's, a signal variance too small, or noise larger than configured), and it
-//! rests on θ⁰ being safe. Within those limits every candidate of the safe variant has
-//! u(x) ≤ h when it is proposed, except the line's origin (θ⁰ or a point that passed the
-//! same test on an earlier line), which may be proposed again when nothing else is safe.
+//! rests on θ⁰ being safe. Within those limits every candidate of the safe variant after θ⁰
+//! has u(x) ≤ h when it is proposed, or is θ⁰ again: when a line's safe set is empty (its
+//! origin, a point that passed the test on the line before, no longer does), the line is
+//! abandoned, θ⁰ is proposed and the next line starts from it.
 //!
 //! # Hyperparameters, and a rule to choose them
 //! * `length_scale` ℓ, relative to the box's width: the distance over which the cost
@@ -383,10 +384,15 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     }
 
     /// The safe set on the line: the grid interval [lo, hi] around the origin whose upper
-    /// bounds are ≤ h (the origin itself always in it).
-    fn safe_interval(&self, line: &Line<N>, threshold: f32) -> (usize, usize) {
+    /// bounds are ≤ h. θ⁰ is safe by assumption; any other origin must pass the test like
+    /// every point (once an episode there has raised its bound above h, it is no longer
+    /// safe), and `None` means that it does not.
+    fn safe_interval(&self, line: &Line<N>, threshold: f32) -> Option<(usize, usize)> {
         let o = line.origin_index();
         let safe = |g: usize| self.bounds_at(g).1 <= threshold;
+        if !(safe(o) || self.origin == self.unit.unit_of(&self.start)) {
+            return None;
+        }
         let mut lo = o;
         while lo > 0 && safe(lo - 1) {
             lo -= 1;
@@ -395,15 +401,16 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         while hi + 1 < GRID && safe(hi + 1) {
             hi += 1;
         }
-        (lo, hi)
+        Some((lo, hi))
     }
 
-    /// The grid point of the next episode on the line (module docs, step 3).
-    fn choose(&self, line: &Line<N>) -> usize {
+    /// The grid point of the next episode on the line (module docs, step 3); `None` when
+    /// the safe set is empty.
+    fn choose(&self, line: &Line<N>) -> Option<usize> {
         let Some(h) = self.config.threshold else {
-            return argmin(0..GRID, |g| self.bounds_at(g).0);
+            return Some(argmin(0..GRID, |g| self.bounds_at(g).0));
         };
-        let (lo, hi) = self.safe_interval(line, h);
+        let (lo, hi) = self.safe_interval(line, h)?;
         let best_upper = (lo..=hi)
             .map(|g| self.bounds_at(g).1)
             .fold(f32::INFINITY, f32::min);
@@ -434,10 +441,10 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let edges = [lo.checked_sub(1), (hi + 1 < GRID).then_some(hi + 1)];
         for &g in candidates.iter() {
             if self.expands(line, usize::from(g), &edges, h) {
-                return usize::from(g);
+                return Some(usize::from(g));
             }
         }
-        widest
+        Some(widest)
     }
 
     /// Whether a fictitious observation of l(x_g) at grid point `g` would bring the upper
@@ -465,7 +472,10 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     /// safe set with a threshold).
     fn end_line(&mut self, line: &Line<N>) {
         let (lo, hi) = match self.config.threshold {
-            Some(h) => self.safe_interval(line, h),
+            Some(h) => match self.safe_interval(line, h) {
+                Some(interval) => interval,
+                None => return self.fall_back(),
+            },
             None => (0, GRID - 1),
         };
         let o = line.origin_index();
@@ -479,6 +489,13 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
             }
         });
         self.origin = self.point(line, g);
+        self.line = None;
+    }
+
+    /// Abandons the line when its safe set is empty: the next line starts from θ⁰, the one
+    /// point safe by assumption.
+    fn fall_back(&mut self) {
+        self.origin = self.unit.unit_of(&self.start);
         self.line = None;
     }
 
@@ -563,9 +580,17 @@ impl<const N: usize, const M: usize> Optimizer<N> for LineBo<N, M> {
         if self.line.is_none() {
             self.begin_line(rng);
         }
-        let theta = match self.line {
-            Some(line) => self.unit.theta_of(&self.point(&line, self.choose(&line))),
-            None => self.unit.theta_of(&self.origin),
+        let chosen = self
+            .line
+            .and_then(|line| Some(self.point(&line, self.choose(&line)?)));
+        let theta = match chosen {
+            Some(x) => self.unit.theta_of(&x),
+            None => {
+                // No safe point on the line: θ⁰ is (module docs, "β and what the safety
+                // guarantee covers").
+                self.fall_back();
+                self.start
+            }
         };
         Ok(self.ledger.hand_out(theta, &self.unit.bounds))
     }
@@ -763,8 +788,8 @@ mod tests {
         }
 
         /// Checks, for random quadratic costs with noise, thresholds and settings: every
-        /// candidate after θ⁰ has an upper confidence bound ≤ h when it is proposed, or is
-        /// the current line's origin (assumed safe). The bound is recomputed at θ from the
+        /// candidate has an upper confidence bound ≤ h when it is proposed, or is θ⁰
+        /// (assumed safe). The bound is recomputed at θ from the
         /// GP directly, so it may differ from the line's by rounding: 10⁻⁴ (1 + |h|) of
         /// slack, far below the widths of the confidence intervals here (σ_f ≥ 0.1).
         #[test]
@@ -789,16 +814,13 @@ mod tests {
             };
             let mut s = LineBo::<3, 16>::try_new(b, start, c).unwrap();
             let mut r = rng(seed);
-            let mut first = true;
             while s.status() == Status::Running {
-                let origin = s.unit.theta_of(&s.origin);
                 let before = s;
                 let t = s.ask(&mut r).unwrap();
-                if !first && t != origin {
+                if t != start {
                     let u = before.upper_bound(&t);
                     prop_assert!(u <= h + 1e-4 * (1.0 + h.abs()), "u = {} > h = {} at {:?}", u, h, t);
                 }
-                first = false;
                 s.tell(f(&t) + noise * (crate::random::unit_f32(&mut r) - 0.5)).unwrap();
             }
         }

@@ -1,0 +1,149 @@
+//! LineBO against the library's other optimizers on the AUV survey from W = 0 (the peers'
+//! `auv` trial: 150 episodes, 10 seeds, success = cost < 1, within D = 1 m), and the unsafe
+//! episodes of every method: episodes whose cost exceeds the bare controller's (θ = 0 in
+//! the seed's first episode) by more than [`SAFETY_MARGIN`]. `linebo-safe` is LineBO given
+//! that bound as its threshold. Release only:
+//!
+//! ```text
+//! cargo test --release -p experiments --test line_bo_auv -- --nocapture
+//! ```
+
+#![cfg(not(debug_assertions))]
+
+use experiments::peers::{SAFETY_MARGIN, Task, Trial, run_library, unsafe_threshold};
+use host_tests::median;
+
+const SEEDS: std::ops::RangeInclusive<u64> = 1..=10;
+
+/// The p-quantile (linear interpolation) of sorted `v`.
+fn quantile(v: &[f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let x = p * (v.len() - 1) as f64;
+    let (i, f) = (x.floor() as usize, x.fract());
+    v[i] + f * (v[(i + 1).min(v.len() - 1)] - v[i])
+}
+
+/// Prints, per method: successes, median [IQR] episodes to success (failures as +∞ in the
+/// median), median deployed cost of the returned θ, optimizer time per evaluation, and the
+/// unsafe episodes summed over the seeds. Checks that every method ran its 150 episodes
+/// on every seed and that `linebo-safe` was the method it claims (its threshold set).
+#[test]
+fn line_bo_on_the_auv() {
+    let task = Task::Auv;
+    println!(
+        "AUV from W = 0, {} episodes, seeds {SEEDS:?}; unsafe: cost > (1 + {SAFETY_MARGIN}) × bare",
+        task.budget()
+    );
+    let bare: Vec<f32> = SEEDS
+        .map(|s| Trial::new(task, s).start_cost().unwrap())
+        .collect();
+    println!("bare controller's cost per seed: {bare:.3?}");
+    println!(
+        "| method | successes | episodes to success, median [IQR] | deployed cost, median | optimizer µs/eval | unsafe episodes |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for method in [
+        "coordinate",
+        "sracos",
+        "crs",
+        "cmaes",
+        "rockstar",
+        "linebo",
+        "linebo-safe",
+    ] {
+        let (mut firsts, mut deployed, mut micros) = (vec![], vec![], vec![]);
+        let (mut successes, mut unsafe_episodes) = (0, 0);
+        for seed in SEEDS {
+            let mut trial = Trial::new(task, seed);
+            let h = unsafe_threshold(&trial).unwrap();
+            let report = run_library(method, &mut trial, task.budget(), seed).unwrap();
+            assert_eq!(
+                report.costs.len(),
+                task.budget() as usize,
+                "{method} seed {seed}"
+            );
+            let first = report.first_success(trial.threshold());
+            successes += usize::from(first.is_some());
+            firsts.push(first.map_or(f64::INFINITY, |k| k as f64));
+            unsafe_episodes += report.costs.iter().filter(|c| **c > h).count();
+            deployed.push(f64::from(trial.deployed(&report.returned).unwrap()));
+            micros.push(report.optimizer_ns / 1e3);
+        }
+        let mut sorted = firsts.clone();
+        sorted.sort_by(f64::total_cmp);
+        println!(
+            "| {method} | {successes}/10 | {:.1} [{:.1}, {:.1}] | {:.3} | {:.1} | {unsafe_episodes} |",
+            median(firsts),
+            quantile(&sorted, 0.25),
+            quantile(&sorted, 0.75),
+            median(deployed),
+            median(micros),
+        );
+    }
+}
+
+/// The safe variant's trade-off on the AUV: for each setting (ℓ, β, σ_f as a multiple of
+/// the bare cost, episodes per line), the unsafe episodes summed over the 10 seeds and
+/// the seeds that reach success within 150 episodes. Prints a table; checks only that
+/// every run used its budget (the figures are the result, not a pass mark).
+#[test]
+fn safe_settings_on_the_auv() {
+    use ctrl_adapt::optimizer::{Bounds, LineBo, LineBoConfig, Optimizer, Vector};
+    use experiments::peers::line_bo_config;
+    use rand_core::SeedableRng;
+    let task = Task::Auv;
+    println!(
+        "| ℓ | β | σ_f / bare | episodes per line | unsafe episodes | successes | episodes to success |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for (length_scale, beta, signal, per_line) in [
+        (0.25, 2.0, 1.0, 3),
+        (0.15, 2.0, 1.0, 3),
+        (0.1, 2.0, 1.0, 3),
+        (0.15, 2.0, 1.0, 1),
+        (0.15, 3.0, 1.0, 3),
+        (0.1, 3.0, 1.0, 3),
+        (0.15, 2.0, 2.0, 1),
+        (0.1, 2.0, 2.0, 3),
+    ] {
+        let (mut unsafe_episodes, mut firsts) = (0, vec![]);
+        for seed in SEEDS {
+            let mut trial = Trial::new(task, seed);
+            let h = unsafe_threshold(&trial).unwrap();
+            let bare = trial.start_cost().unwrap();
+            let config = LineBoConfig {
+                length_scale,
+                beta,
+                signal_variance: (signal * bare).powi(2),
+                evaluations_per_line: per_line,
+                ..line_bo_config(&trial, task.budget(), true).unwrap()
+            };
+            let bounds = Bounds::try_new(
+                Vector::from_column_slice(trial.lower()),
+                Vector::from_column_slice(trial.upper()),
+            )
+            .unwrap();
+            let mut s = LineBo::<18, 64>::try_new(bounds, Vector::zeros(), config).unwrap();
+            let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(seed);
+            let (mut k, mut first) = (0, None);
+            while let Ok(theta) = s.ask(&mut rng) {
+                let cost = trial.score(theta.as_slice()).unwrap();
+                k += 1;
+                unsafe_episodes += usize::from(cost > h);
+                if first.is_none() && cost < trial.threshold() {
+                    first = Some(k);
+                }
+                s.tell(cost).unwrap();
+            }
+            assert_eq!(k, task.budget());
+            firsts.extend(first);
+        }
+        firsts.sort();
+        println!(
+            "| {length_scale} | {beta} | {signal} | {per_line} | {unsafe_episodes} | {}/10 | {firsts:?} |",
+            firsts.len()
+        );
+    }
+}
