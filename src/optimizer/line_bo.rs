@@ -353,19 +353,24 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         // spans the box.
         self.line = Line::through(&self.origin, direction, offset)
             .or_else(|| Line::through(&self.origin, coordinate, offset));
-        self.refresh();
+        self.refresh(true);
     }
 
-    /// Recomputes the posterior on the line's grid: one triangular solve per grid point.
-    fn refresh(&mut self) {
+    /// Recomputes the posterior on the line's grid: the means, and with `variance` the
+    /// standard deviations (one triangular solve per grid point, most of the work).
+    fn refresh(&mut self, variance: bool) {
         let Some(line) = self.line else { return };
         let kernel = self.config.kernel();
         let terms = self.gp.line_terms(&self.origin, &line.direction);
         for g in 0..GRID {
             let mut k = self.gp.line_column(&terms, line.t(g), &kernel);
-            let (mean, variance) = self.gp.posterior(&mut k, &kernel);
-            self.posterior.mean[g] = mean;
-            self.posterior.sd[g] = libm::sqrtf(variance);
+            if variance {
+                let (mean, variance) = self.gp.posterior(&mut k, &kernel);
+                self.posterior.mean[g] = mean;
+                self.posterior.sd[g] = libm::sqrtf(variance);
+            } else {
+                self.posterior.mean[g] = self.gp.mean(&k);
+            }
         }
     }
 
@@ -438,7 +443,11 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
             self.width(usize::from(b))
                 .total_cmp(&self.width(usize::from(a)))
         });
-        let edges = [lo.checked_sub(1), (hi + 1 < GRID).then_some(hi + 1)];
+        if candidates.is_empty() {
+            return Some(widest);
+        }
+        let edges = [lo.checked_sub(1), (hi + 1 < GRID).then_some(hi + 1)]
+            .map(|e| e.map(|e| self.edge(line, e)));
         for &g in candidates.iter() {
             if self.expands(line, usize::from(g), &edges, h) {
                 return Some(usize::from(g));
@@ -449,23 +458,38 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
 
     /// Whether a fictitious observation of l(x_g) at grid point `g` would bring the upper
     /// bound of one of the unsafe `edges` to ≤ h.
-    fn expands(&self, line: &Line<N>, g: usize, edges: &[Option<usize>; 2], h: f32) -> bool {
+    fn expands(&self, line: &Line<N>, g: usize, edges: &[Option<Edge<M>>; 2], h: f32) -> bool {
         let kernel = self.config.kernel();
-        let terms = self.gp.line_terms(&self.origin, &line.direction);
+        let Some(first) = edges.iter().flatten().next() else {
+            return false;
+        };
         let (tg, (lower_g, _)) = (line.t(g), self.bounds_at(g));
-        let mut vg = self.gp.line_column(&terms, tg, &kernel);
+        let mut vg = self.gp.line_column(&first.terms, tg, &kernel);
         let (mean_g, var_g) = self.gp.posterior(&mut vg, &kernel);
-        edges.iter().flatten().any(|&e| {
-            let te = line.t(e);
-            let mut ve = self.gp.line_column(&terms, te, &kernel);
-            let (mean_e, var_e) = self.gp.posterior(&mut ve, &kernel);
-            let dt = tg - te;
-            let cov = self.gp.covariance(kernel.at(dt * dt), &vg, &ve);
+        edges.iter().flatten().any(|e| {
+            let dt = tg - e.t;
+            let cov = self.gp.covariance(kernel.at(dt * dt), &vg, &e.white);
             let gain = cov / (var_g + kernel.noise);
-            let mean = mean_e + gain * (lower_g - mean_g);
-            let var = (var_e - gain * cov).max(0.0);
+            let mean = e.mean + gain * (lower_g - mean_g);
+            let var = (e.variance - gain * cov).max(0.0);
             mean + self.config.beta * libm::sqrtf(var) <= h
         })
+    }
+
+    /// The posterior at the unsafe grid point `e` next to the safe set, for [`Self::expands`].
+    fn edge(&self, line: &Line<N>, e: usize) -> Edge<M> {
+        let kernel = self.config.kernel();
+        let terms = self.gp.line_terms(&self.origin, &line.direction);
+        let t = line.t(e);
+        let mut white = self.gp.line_column(&terms, t, &kernel);
+        let (mean, variance) = self.gp.posterior(&mut white, &kernel);
+        Edge {
+            t,
+            mean,
+            variance,
+            white,
+            terms,
+        }
     }
 
     /// Ends the line: the next origin is the posterior mean's minimiser on it (within the
@@ -513,6 +537,16 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let (mean, var) = self.gp.posterior(&mut k, &kernel);
         mean + self.config.beta * libm::sqrtf(var)
     }
+}
+
+/// An unsafe grid point next to the safe set: its t, posterior mean and variance, L⁻¹k,
+/// and the line's kernel terms (shared by the expander tests).
+struct Edge<const M: usize> {
+    t: f32,
+    mean: f32,
+    variance: f32,
+    white: SVector<f32, M>,
+    terms: gp::LineTerms<M>,
 }
 
 /// The index of `values` where `key` is lowest (NaN never wins; the first on ties), or 0.
@@ -603,8 +637,10 @@ impl<const N: usize, const M: usize> Optimizer<N> for LineBo<N, M> {
         if let Some(mut line) = self.line {
             line.told += 1;
             self.line = Some(line);
-            self.refresh();
-            if line.told >= self.config.evaluations_per_line {
+            // The end of a line needs only the means, unless the safe set is to be known.
+            let ends = line.told >= self.config.evaluations_per_line;
+            self.refresh(!ends || self.config.threshold.is_some());
+            if ends {
                 self.end_line(&line);
             }
         }
@@ -746,6 +782,24 @@ mod tests {
                 assert!(best < target, "{directions:?} seed {seed}: best {best}");
             }
         }
+    }
+
+    /// Prints the state's size at the AUV's n = 18 and the hopper's n = 31 with the
+    /// recommended capacity M = 64 (and M = 48 at n = 31), and checks the footprint target
+    /// at n = 18: at most 24 KB. (The host figure bounds the Cortex-M one: the fields are
+    /// f32 and u32 but for the GP's one `usize` count, 8 bytes here and 4 there.)
+    #[test]
+    fn state_size_at_the_recommended_capacity() {
+        extern crate std;
+        let sizes = [
+            ("LineBo<18, 64>", core::mem::size_of::<LineBo<18, 64>>()),
+            ("LineBo<31, 64>", core::mem::size_of::<LineBo<31, 64>>()),
+            ("LineBo<31, 48>", core::mem::size_of::<LineBo<31, 48>>()),
+        ];
+        for (name, bytes) in sizes {
+            std::println!("{name}: {bytes} B");
+        }
+        assert!(sizes[0].1 <= 24 * 1024, "{} B", sizes[0].1);
     }
 
     #[test]

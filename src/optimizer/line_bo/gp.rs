@@ -175,11 +175,17 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         k
     }
 
+    /// The posterior mean of the latent cost at the point whose kernel column is `k`.
+    pub(crate) fn mean(&self, k: &SVector<f32, M>) -> f32 {
+        let n = self.len.min(M);
+        self.prior() + k.rows(0, n).dot(&self.weights.rows(0, n))
+    }
+
     /// The posterior mean and variance of the latent cost at the point whose kernel
     /// column is `k`; `k` is overwritten with L⁻¹k (for [`Gp::covariance`]).
     pub(crate) fn posterior(&self, k: &mut SVector<f32, M>, kernel: &Kernel) -> (f32, f32) {
         let n = self.len.min(M);
-        let mean = self.prior() + k.rows(0, n).dot(&self.weights.rows(0, n));
+        let mean = self.mean(k);
         solve_lower(&self.factor, k, n);
         let variance = (kernel.signal - k.rows(0, n).norm_squared()).max(0.0);
         (mean, variance)
