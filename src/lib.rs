@@ -37,8 +37,9 @@ pub use bounds::Bounds;
 pub use error::Error;
 pub use optimizer::{
     AnyOptimizer, Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, Replacement, Rockstar,
-    RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Weighting,
+    CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, LineDirections, Optimizer,
+    Racos, Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression,
+    TwoPhase, Weighting,
 };
 pub use vector::Vector;
 
@@ -87,6 +88,10 @@ const _: () = {
     assert_format::<Racos<3, 1, 3>>();
     assert_format::<RockstarConfig>();
     assert_format::<Rockstar<3, 8>>();
+    assert_format::<LineDirections>();
+    assert_format::<LineBoConfig>();
+    assert_format::<LineBo<3, 8>>();
+    assert_format::<AnyOptimizer<3>>();
 };
 
 #[cfg(all(feature = "defmt", feature = "serde"))]
