@@ -76,6 +76,9 @@
 //! * **Capacity.** The GP remembers `M` episodes (const generic, no heap); beyond that it
 //!   evicts (see [`gp`]). With M ≥ the budget nothing is ever evicted.
 //! * **f32** throughout: the Cortex-M4F has a single-precision FPU.
+//! * **No stopping test.** Like the authors' code, the search runs until its budget
+//!   (`max_evaluations`, then [`Status::BudgetSpent`](super::Status)); it never reports
+//!   `Converged`.
 
 pub(crate) mod gp;
 
