@@ -53,6 +53,16 @@ impl<const N: usize> Bounds<N> {
         Ok(())
     }
 
+    /// The box [−1, 1]^N: the box of [`Corrected`](crate::controller::Corrected)'s
+    /// dimensionless weights.
+    pub fn unit() -> Self {
+        const { assert!(N > 0, "an optimizer needs at least one parameter") };
+        Self {
+            lower: Vector::repeat(-1.0),
+            upper: Vector::repeat(1.0),
+        }
+    }
+
     /// The same interval `[lower, upper]` in every coordinate.
     pub fn uniform(lower: f32, upper: f32) -> Result<Self, Error> {
         Self::try_new(Vector::repeat(lower), Vector::repeat(upper))

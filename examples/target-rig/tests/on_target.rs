@@ -355,8 +355,8 @@ mod tests {
     /// θ = 0 gives exactly the nominal PD.
     #[test]
     fn policy_correction_stays_in_its_envelope() {
-        let controller = auv::controller().unwrap();
-        let policy = controller.policy();
+        let mut controller = auv::controller().unwrap();
+        let policy = *controller.policy();
         let mut r = rng(21);
         for _ in 0..2_000 {
             let theta = Vector::<18>::from_fn(|_, _| wild(&mut r, 2.0));
@@ -391,7 +391,7 @@ mod tests {
     #[test]
     fn adapter_fallbacks_never_tell_a_non_finite_cost() {
         let mut a = auv::adapter(auv::coordinate_search(u32::MAX).unwrap(), u32::MAX).unwrap();
-        let controller = *a.controller();
+        let mut controller = *a.controller();
         let mut r = rng(22);
         let mut learned = 0;
         for episode in 0..120u32 {
@@ -466,7 +466,7 @@ mod tests {
         let mut l =
             auv::AuvLearner::try_new(auv::coordinate_search(u32::MAX).unwrap(), u32::MAX, 1)
                 .unwrap();
-        let controller = auv::controller().unwrap();
+        let mut controller = auv::controller().unwrap();
         let mut theta = pil_link::Values::new();
         l.start_episode(0, &[], &mut theta);
         let mut u = pil_link::Values::new();
