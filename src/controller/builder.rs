@@ -60,7 +60,7 @@ pub type CorrectedAdapter<N, const A: usize, const S: usize, const P: usize> =
 /// let u = adapter.control(&state, &Vector::from([state[0]])); // error as the observation
 /// assert!(u[0].is_finite());
 /// adapter.end_episode()?;
-/// assert_eq!(theta, Vector::zeros()); // the first episode runs the bare PD
+/// assert_eq!(theta, Vector::<2>::zeros()); // the first episode runs the bare PD
 /// # Ok::<(), Box<dyn core::error::Error>>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
