@@ -86,20 +86,25 @@ impl<const N: usize> Bounds<N> {
     /// `theta` projected onto the box coordinate-wise. A NaN coordinate maps to the lower
     /// bound, so the result is always inside the box.
     pub fn clamp(&self, theta: &Vector<N>) -> Vector<N> {
-        Vector::from_fn(|i, _| {
-            let v = theta[i];
+        let mut projected = *theta;
+        self.project(&mut projected);
+        projected
+    }
+
+    /// [`Bounds::clamp`] in place: every optimizer's `ask` passes through it, so it does
+    /// two comparisons per coordinate and no copy.
+    pub(crate) fn project(&self, theta: &mut Vector<N>) {
+        let box_ = self.lower.iter().zip(self.upper.iter());
+        for (v, (&lower, &upper)) in theta.iter_mut().zip(box_) {
             // Comparisons, not `f32::clamp` (its `min <= max` assertion is a panic path the
             // compiler cannot remove) nor `max`/`min` (library calls on a Cortex-M4F, which
             // has no VMAXNM). Both ordered tests are false for NaN, hence the first branch.
-            let (lower, upper) = (self.lower[i], self.upper[i]);
-            if v.is_nan() || v < lower {
-                lower
-            } else if v > upper {
-                upper
-            } else {
-                v
+            if v.is_nan() || *v < lower {
+                *v = lower;
+            } else if *v > upper {
+                *v = upper;
             }
-        })
+        }
     }
 
     /// `Ok` if `theta` is finite and inside the box; otherwise an error naming it `what`.

@@ -62,6 +62,8 @@ const _: () = {
     assert_format::<controller::EpisodeReport<3>>();
     assert_format::<controller::CorrectedPd<3, 6, 6, 18, controller::StateFeatures<6>>>();
     assert_format::<controller::PeriodicPd<10, 31>>();
+    assert_format::<controller::AdapterBuilder<1, 2, 2>>();
+    assert_format::<controller::Corrected<controller::Pd<1>, 1, 2, 2>>();
     assert_format::<cost::SurveyCost>();
     assert_format::<cost::QuadraticCost<3>>();
     assert_format::<cost::ApexHeightCost>();

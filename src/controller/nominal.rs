@@ -200,6 +200,30 @@ mod tests {
         assert_eq!(c.nominal_law().0, 2);
     }
 
+    /// Checks: the library's `Pd`, differentiating by finite differences (`Pd::update`,
+    /// `&mut self`), serves as the nominal law: the corrected controller's first tick has
+    /// no rate, its second the measured one, as the bare `Pd` alone gives.
+    #[test]
+    fn the_library_pd_with_state_serves_as_nominal_law() {
+        use crate::controller::Pd;
+        let pd = Pd::<1>::try_new(Vector::repeat(3.0), Vector::repeat(0.5)).unwrap();
+        let mut reference = pd;
+        let setpoint = Vector::<1>::repeat(1.0);
+        // State: [position]; the law sees the setpoint and the measurement.
+        let mut inner = pd;
+        let law = move |s: &Vector<1>, _t: f32| inner.update(&setpoint, s, 0.1);
+        let mut c = Corrected::<_, 1, 1, 1>::try_new(law, Vector::repeat(1.0), Vector::repeat(1.0))
+            .unwrap();
+        let theta = Vector::zeros();
+        for x in [0.0, 0.2, 0.3] {
+            let s = Vector::from([x]);
+            assert_eq!(
+                c.corrected(&theta, &s, 0.0),
+                reference.update(&setpoint, &s, 0.1)
+            );
+        }
+    }
+
     proptest! {
         /// Checks: for any θ in the box and any state (NaN and ±∞ included), the correction
         /// stays within ±L (NaN becomes 0); the corrected action differs from the nominal one
