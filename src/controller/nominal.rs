@@ -80,7 +80,7 @@ where
     /// alone may command the whole correction). No output limit.
     pub fn try_new(nominal: N, limit: Vector<A>, scale: Vector<S>) -> Result<Self, Error> {
         const { assert!(P == A * S, "θ holds the A·S weights") };
-        require(limit.iter().all(|l| l.is_finite() && *l > 0.0), "limit")?;
+        check_limits(&limit, &Vector::repeat(f32::INFINITY))?;
         require(scale.iter().all(|s| s.is_finite() && *s > 0.0), "scale")?;
         let features = StateFeatures::scaled(scale.map(|s| 1.0 / s))?;
         Ok(Self {
@@ -94,7 +94,7 @@ where
     /// Limits |u_i| of the corrected action to `output_limit[i]` (> 0; `f32::INFINITY` for
     /// none), e.g. the actuator's range. The nominal action is never limited: it is yours.
     pub fn with_output_limit(mut self, output_limit: Vector<A>) -> Result<Self, Error> {
-        require(output_limit.iter().all(|l| *l > 0.0), "output_limit")?;
+        check_limits(&self.limit, &output_limit)?;
         self.output_limit = output_limit;
         Ok(self)
     }
@@ -120,6 +120,30 @@ where
             .correction(theta, state, 0.0)
             .component_mul(&self.limit)
     }
+}
+
+#[cfg(feature = "serde")]
+impl<N, const A: usize, const S: usize, const P: usize> Corrected<N, A, S, P>
+where
+    N: crate::record::Persistent,
+{
+    /// The checks of [`Corrected::try_new`] and [`Corrected::with_output_limit`] and those
+    /// of the nominal law, run on a decoded controller.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        check_limits(&self.limit, &self.output_limit)?;
+        self.policy.check_decoded()?;
+        require(
+            *self.policy.envelope() == Vector::<A>::repeat(1.0),
+            "envelope",
+        )?;
+        self.nominal.validate()
+    }
+}
+
+/// Correction limits finite and > 0; output limits > 0 (+∞ for none).
+fn check_limits<const A: usize>(limit: &Vector<A>, output_limit: &Vector<A>) -> Result<(), Error> {
+    require(limit.iter().all(|l| l.is_finite() && *l > 0.0), "limit")?;
+    require(output_limit.iter().all(|l| *l > 0.0), "output_limit")
 }
 
 impl<N, const A: usize, const S: usize, const P: usize> Controller<P, S, A>
@@ -222,6 +246,47 @@ mod tests {
                 reference.update(&setpoint, &s, 0.1)
             );
         }
+    }
+
+    /// Checks: a `Corrected` whose law has a type of its own is saved and loaded bit for
+    /// bit, with its law; a record whose correction limit was forged to NaN is refused.
+    #[cfg(feature = "serde")]
+    #[test]
+    fn a_corrected_law_round_trips_and_forged_limits_are_refused() {
+        use crate::record::{self, Persistent, RecordError, Shape};
+
+        #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+        struct Gain(f32);
+        impl Nominal<1, 1> for Gain {
+            fn action(&mut self, state: &Vector<1>, _time: f32) -> Vector<1> {
+                state * self.0
+            }
+        }
+        impl Persistent for Gain {
+            const SHAPE: Shape = Shape::new(*b"GAIN", &[]);
+            fn validate(&self) -> Result<(), Error> {
+                require(self.0.is_finite(), "gain")
+            }
+        }
+
+        let c = Corrected::<_, 1, 1, 1>::try_new(Gain(2.0), [1.5].into(), [0.5].into()).unwrap();
+        let mut buf = [0u8; 128];
+        let bytes = record::save(&c, &mut buf).unwrap().to_vec();
+        assert_eq!(record::load::<Corrected<Gain, 1, 1, 1>>(&bytes), Ok(c));
+        let mut forged = c;
+        forged.limit = Vector::repeat(f32::NAN);
+        let bytes = record::save(&forged, &mut buf).unwrap().to_vec();
+        assert_eq!(
+            record::load::<Corrected<Gain, 1, 1, 1>>(&bytes),
+            Err(RecordError::Invalid(Error::InvalidParameter("limit")))
+        );
+        let mut forged = c;
+        forged.nominal = Gain(f32::INFINITY);
+        let bytes = record::save(&forged, &mut buf).unwrap().to_vec();
+        assert_eq!(
+            record::load::<Corrected<Gain, 1, 1, 1>>(&bytes),
+            Err(RecordError::Invalid(Error::InvalidParameter("gain")))
+        );
     }
 
     proptest! {
