@@ -63,12 +63,18 @@ const EVALUATIONS_ROCKSTAR: u32 = (ROCKSTAR_M + N) as u32;
 const fn parse_n(text: Option<&str>) -> usize {
     let Some(text) = text else { return 18 };
     let bytes = text.as_bytes();
-    assert!(!bytes.is_empty(), "CTRL_ADAPT_N is empty: set it to a number");
+    assert!(
+        !bytes.is_empty(),
+        "CTRL_ADAPT_N is empty: set it to a number"
+    );
     let mut n = 0usize;
     let mut i = 0;
     while i < bytes.len() {
         let digit = bytes[i];
-        assert!(digit.is_ascii_digit(), "CTRL_ADAPT_N must be a decimal number");
+        assert!(
+            digit.is_ascii_digit(),
+            "CTRL_ADAPT_N must be a decimal number"
+        );
         n = n * 10 + (digit - b'0') as usize;
         assert!(n <= 127, "CTRL_ADAPT_N must be at most 127");
         i += 1;
@@ -283,14 +289,7 @@ fn main() -> ! {
         .and_then(|()| report("DiagonalCem", &[N, CEM_K, CEM_E], build_cem, run_cem))
         .and_then(|()| report("ControlledRandomSearch", &[N, CRS_M], build_crs, run_crs))
         .and_then(|()| report("Cmaes", &[N, CMAES_L], build_cmaes, run_cmaes))
-        .and_then(|()| {
-            report(
-                "Rockstar",
-                &[N, ROCKSTAR_M],
-                build_rockstar,
-                run_rockstar,
-            )
-        });
+        .and_then(|()| report("Rockstar", &[N, ROCKSTAR_M], build_rockstar, run_rockstar));
     if let Err(e) = measured {
         defmt::error!("sizes failed: {}", e);
         exit_failure()
