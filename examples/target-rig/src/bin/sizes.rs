@@ -59,6 +59,18 @@ const EVALUATIONS: u32 = 400;
 /// millions of instructions at N = 31).
 const EVALUATIONS_ROCKSTAR: u32 = (ROCKSTAR_M + N) as u32;
 
+/// Optimizers not to run (their names, separated by commas): `CTRL_ADAPT_SKIP` at build time.
+/// `scripts/sizes` sets it for those whose stack overflowed the RAM in a run before.
+const SKIP: &str = match option_env!("CTRL_ADAPT_SKIP") {
+    Some(names) => names,
+    None => "",
+};
+
+/// Whether `name` is one of [`SKIP`].
+fn skipped(name: &str) -> bool {
+    SKIP.split(',').any(|skip| skip == name)
+}
+
 /// `CTRL_ADAPT_N` as a number from 1 to 127; anything else stops the build with a message.
 const fn parse_n(text: Option<&str>) -> usize {
     let Some(text) = text else { return 18 };
@@ -248,8 +260,9 @@ fn report<O>(
     run: fn(&mut O) -> Result<u32, Error>,
 ) -> Result<(), Error> {
     let state = core::mem::size_of::<O>();
-    if state >= stack::region_bytes() as usize {
-        // It would overflow the stack into the statics: say so instead of running.
+    if state >= stack::region_bytes() as usize || skipped(name) {
+        // Its state alone would overflow the stack (into the statics, then out of RAM), or
+        // a run before this one overflowed it: say so instead of running.
         defmt::warn!(
             "sizes: row {=str} {=[?]} state {=usize} does not fit the stack region ({=u32} B)",
             name,
@@ -259,6 +272,9 @@ fn report<O>(
         );
         return Ok(());
     }
+    // Should the run overflow the stack, QEMU stops with a lockup and this line tells
+    // scripts/sizes which optimizer to skip in the next build.
+    defmt::info!("sizes: measuring {=str}", name);
     let (evaluations, whole) = stack::measure(|| build_and_run(build, run));
     let evaluations = evaluations?;
     let calls = build_then_measure(build, run)?;
