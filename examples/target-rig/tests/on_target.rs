@@ -113,6 +113,19 @@ fn run_fingerprint(seed: u64) -> (u64, u32) {
     (hash, s.evaluations())
 }
 
+/// Writes and reads a local array of `WORDS` words, so its frame holds at least 4·`WORDS`
+/// bytes; never inlined, so that the frame is its own.
+#[inline(never)]
+fn frame_of<const WORDS: usize>() -> u32 {
+    let mut words = [0u32; WORDS];
+    for (i, w) in words.iter_mut().enumerate() {
+        *w = core::hint::black_box(i as u32);
+    }
+    core::hint::black_box(&mut words)
+        .iter()
+        .fold(0, |a, &w| a ^ w)
+}
+
 /// An RNG that always returns the largest value, the edge case of `unit_f32`.
 struct Saturated;
 impl RngCore for Saturated {
@@ -619,5 +632,33 @@ mod tests {
         )
         .unwrap();
         candidates_in_bounds::<18, _>(rock, &mut r, 300);
+    }
+
+    /// `stack::measure` (the paint and scan of `scripts/sizes`) counts a call's frame: a call
+    /// holding a 1 KiB array measures at least 1 KiB and not much more (its frame's saved
+    /// registers and the paint guard: under 256 B more); a 2 KiB one 1 KiB more than that,
+    /// to within a few words; measuring again after a deeper call forgets the deeper one.
+    #[test]
+    fn stack_measure_counts_a_call_frame() {
+        let (_, one) = ctrl_adapt_firmware::stack::measure(frame_of::<256>);
+        let (_, two) = ctrl_adapt_firmware::stack::measure(frame_of::<512>);
+        let (_, again) = ctrl_adapt_firmware::stack::measure(frame_of::<256>);
+        defmt::info!(
+            "stack::measure: 1 KiB frame {=u32} B, 2 KiB frame {=u32} B",
+            one,
+            two
+        );
+        assert!(
+            (1024..1024 + 256).contains(&one),
+            "1 KiB frame measured {}",
+            one
+        );
+        assert!(
+            (i64::from(two) - i64::from(one) - 1024).abs() <= 16,
+            "2 KiB frame {}, 1 KiB frame {}",
+            two,
+            one
+        );
+        assert_eq!(again, one);
     }
 }
