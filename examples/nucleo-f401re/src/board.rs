@@ -50,6 +50,9 @@ const SAFE_RANGE: (f32, f32) = (-0.05, 1.15);
 const METRES_PER_COUNT: f32 = 0.04 / 4000.0;
 /// "At the start pose": within 5 mm of it, moving slower than 1 cm/s.
 const AT_REST: (f32, f32) = (0.005, 0.01);
+/// A press counts after the button was seen up on this many ticks in a row (60 ms): its
+/// contacts bounce for a few milliseconds, which a 20 ms sample may catch once.
+const RELEASED_TICKS: u8 = 3;
 /// Watchdog timeout (ms): five control periods.
 const WATCHDOG_MS: u32 = 100;
 
@@ -87,8 +90,9 @@ pub struct Board {
     /// Position (m) and velocity (m/s) at the last tick.
     x: f32,
     v: f32,
-    /// The button at the last tick, and whether it went down since `pressed` was last called.
-    button_down: bool,
+    /// Ticks the button has been up in a row, and whether it was pressed since `pressed`
+    /// was last called.
+    up_ticks: u8,
     press: bool,
     pattern: Led,
     ticks: u32,
@@ -126,7 +130,7 @@ impl Board {
             watchdog,
             x: 0.0,
             v: 0.0,
-            button_down: false,
+            up_ticks: 0,
             press: false,
             pattern: Led::Off,
             ticks: 0,
@@ -151,9 +155,12 @@ impl Board {
         let x = self.position();
         self.v = (x - self.x) / DT;
         self.x = x;
-        let down = self.button.is_low();
-        self.press |= down && !self.button_down;
-        self.button_down = down;
+        if self.button.is_low() {
+            self.press |= self.up_ticks >= RELEASED_TICKS;
+            self.up_ticks = 0;
+        } else {
+            self.up_ticks = self.up_ticks.saturating_add(1);
+        }
         self.update_led();
         Vector::from([setpoint - x, self.v])
     }

@@ -36,6 +36,7 @@ fn main() -> ! {
     let mut episode: u32 = 0;
     loop {
         return_to_start(&mut board, &mut adapter, armed);
+        board.take_overruns(); // count the episode's own
         // θ of this episode: the optimizer's next candidate; after EPISODES, the best one.
         // (Should it fail, no episode runs and `control` gives the bare PD.)
         if let Err(e) = adapter.begin_seeded_episode::<Xoshiro128PlusPlus>(SEED) {
