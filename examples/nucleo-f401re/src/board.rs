@@ -10,8 +10,8 @@
 //!
 //! The clock is the internal 16 MHz RC oscillator (HSI) through the PLL to 84 MHz, the
 //! F401's maximum: it works on every revision of the board. For a crystal-accurate clock,
-//! `Config::hse(8.MHz()).bypass_hse_oscillator()` takes the ST-LINK's 8 MHz output (wired
-//! to OSC_IN on boards from revision C).
+//! `Config::hse(8.MHz()).bypass_hse_oscillator()` takes the ST-LINK's 8 MHz output on
+//! OSC_IN, where the board revision wires it (UM1724, "OSC clock").
 //!
 //! The control tick is SysTick, counting down at 50 Hz: [`Board::read_state`] waits for it,
 //! so the loop runs at a fixed rate whatever the computation takes, and a tick whose
