@@ -18,7 +18,7 @@ pub mod pd;
 pub mod policy;
 
 pub use adapter::{Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode};
-pub use builder::AdapterBuilder;
+pub use builder::{AdapterBuilder, CorrectedAdapter};
 pub use nominal::{Corrected, Nominal};
 pub use pd::{Derivative, Pd};
 pub use policy::{

@@ -26,8 +26,10 @@ pub trait Nominal<const S: usize, const A: usize> {
     /// The nominal action for `state`.
     fn action(&mut self, state: &Vector<S>, time: f32) -> Vector<A>;
 
-    /// Called when an episode begins. Nothing by default (a closure cannot be reset: use
-    /// `time == 0.0`, the first tick of every episode, to restart its memory).
+    /// Called when an episode begins. Nothing by default, and a closure cannot be reset:
+    /// give your law a type and implement this trait for it when it should forget its
+    /// memory at the start of an episode. (`time` is no substitute: outside episodes the
+    /// adapter runs the nominal law with `time` = 0 on every tick.)
     fn reset(&mut self) {}
 }
 
