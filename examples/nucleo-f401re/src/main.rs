@@ -14,7 +14,7 @@ mod my_pd; // your PD, as it is
 use board::{Board, Led};
 use ctrl_adapt::{
     Vector,
-    controller::{AdapterBuilder, Mode, Nominal, builder::CorrectedAdapter},
+    controller::{AdapterBuilder, CorrectedAdapter, Mode, Nominal},
 };
 use rand_xoshiro::Xoshiro128PlusPlus;
 
