@@ -245,7 +245,11 @@ mod tests {
         assert_eq!(c, Vector::from([-1.0, 1e-6, 1e-3, 0.0]));
         let inside = Vector::<4>::from([-0.0, 5e-7, 1.5e-3, -1e6]);
         let kept = b.clamp(&inside);
-        assert!(kept.iter().zip(inside.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(
+            kept.iter()
+                .zip(inside.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
         assert_eq!(b.check(&wild, "theta"), Err(Error::NonFinite("theta")));
         assert_eq!(
             b.check(&Vector::from([2.0, 0.0, 1e-3, 0.0]), "theta"),
