@@ -21,12 +21,16 @@ fn parse_version(text: &str) -> Option<Version> {
 
 /// The `version` of the `[package]` table of a Cargo manifest.
 fn manifest_version(manifest: &str) -> Option<&str> {
-    let package = manifest.split("\n[package]\n").nth(1).or_else(|| {
-        manifest.strip_prefix("[package]\n")
-    })?;
+    let package = manifest
+        .split("\n[package]\n")
+        .nth(1)
+        .or_else(|| manifest.strip_prefix("[package]\n"))?;
     let table = package.split("\n[").next()?;
     table.lines().find_map(|line| {
-        let value = line.strip_prefix("version")?.trim_start().strip_prefix('=')?;
+        let value = line
+            .strip_prefix("version")?
+            .trim_start()
+            .strip_prefix('=')?;
         Some(value.trim().trim_matches('"'))
     })
 }
@@ -58,7 +62,11 @@ fn deprecated_since(source: &str) -> Vec<String> {
         .skip(1)
         .filter_map(|attribute| {
             let attribute = &attribute[..attribute.find(")]")?];
-            let value = attribute.split("since").nth(1)?.trim_start().strip_prefix('=')?;
+            let value = attribute
+                .split("since")
+                .nth(1)?
+                .trim_start()
+                .strip_prefix('=')?;
             let value = value.trim_start().strip_prefix('"')?;
             Some(value[..value.find('"')?].to_string())
         })
@@ -114,7 +122,10 @@ fn no_deprecation_names_a_version_after_the_manifests() {
             checked += 1;
         }
     }
-    assert!(checked > 0, "no #[deprecated(since = ...)] found under src/");
+    assert!(
+        checked > 0,
+        "no #[deprecated(since = ...)] found under src/"
+    );
 }
 
 #[test]
@@ -122,9 +133,11 @@ fn the_parsers_read_what_they_are_meant_to() {
     assert_eq!(parse_version("0.2.0"), Some((0, 2, 0)));
     assert_eq!(parse_version("0.2"), None);
     assert_eq!(parse_version("0.2.0.1"), None);
-    let manifest = "[package]\nname = \"x\"\nversion = \"1.4.2\"\n\n[dependencies]\nversion = \"9\"\n";
+    let manifest =
+        "[package]\nname = \"x\"\nversion = \"1.4.2\"\n\n[dependencies]\nversion = \"9\"\n";
     assert_eq!(manifest_version(manifest), Some("1.4.2"));
-    let released = "# Change Log\n\n## [Unreleased]\n\n### Added\n\n- x\n\n## [0.3.1]\n\n## [0.3.0]\n";
+    let released =
+        "# Change Log\n\n## [Unreleased]\n\n### Added\n\n- x\n\n## [0.3.1]\n\n## [0.3.0]\n";
     assert_eq!(changelog_version(released).as_deref(), Some("0.3.1"));
     let preparing = "# Change Log\n\n## [Unreleased]\n\nVersion 0.4.0: more.\n\n## [0.3.1]\n";
     assert_eq!(changelog_version(preparing).as_deref(), Some("0.4.0"));
