@@ -1,5 +1,7 @@
 //! Versioned records of the library's state, for learning that survives a power cut.
 //!
+//! Available with the crate feature `serde`.
+//!
 //! Every optimizer, its configuration, the [`Adapter`](crate::controller::Adapter) with the
 //! controller and cost shaper it holds, [`Bounds`](crate::Bounds) and
 //! [`Vector`](crate::Vector) implement `serde`'s `Serialize`/`Deserialize` under the `serde`
