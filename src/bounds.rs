@@ -53,6 +53,16 @@ impl<const N: usize> Bounds<N> {
         Ok(())
     }
 
+    /// The box [−1, 1]^N: the box of [`Corrected`](crate::controller::Corrected)'s
+    /// dimensionless weights.
+    pub fn unit() -> Self {
+        const { assert!(N > 0, "an optimizer needs at least one parameter") };
+        Self {
+            lower: Vector::repeat(-1.0),
+            upper: Vector::repeat(1.0),
+        }
+    }
+
     /// The same interval `[lower, upper]` in every coordinate.
     pub fn uniform(lower: f32, upper: f32) -> Result<Self, Error> {
         Self::try_new(Vector::repeat(lower), Vector::repeat(upper))
@@ -76,20 +86,24 @@ impl<const N: usize> Bounds<N> {
     /// `theta` projected onto the box coordinate-wise. A NaN coordinate maps to the lower
     /// bound, so the result is always inside the box.
     pub fn clamp(&self, theta: &Vector<N>) -> Vector<N> {
-        Vector::from_fn(|i, _| {
-            let v = theta[i];
+        let mut projected = *theta;
+        self.project(&mut projected);
+        projected
+    }
+
+    /// [`Bounds::clamp`] in place: every optimizer's `ask` passes through it, so it works
+    /// on the slices (nalgebra's strided iterators and `from_fn` cost several times more
+    /// per coordinate on a Cortex-M) and writes only coordinates outside the box.
+    pub(crate) fn project(&self, theta: &mut Vector<N>) {
+        let box_ = self.lower.as_slice().iter().zip(self.upper.as_slice());
+        for (v, (&lower, &upper)) in theta.as_mut_slice().iter_mut().zip(box_) {
             // Comparisons, not `f32::clamp` (its `min <= max` assertion is a panic path the
             // compiler cannot remove) nor `max`/`min` (library calls on a Cortex-M4F, which
-            // has no VMAXNM). Both ordered tests are false for NaN, hence the first branch.
-            let (lower, upper) = (self.lower[i], self.upper[i]);
-            if v.is_nan() || v < lower {
-                lower
-            } else if v > upper {
-                upper
-            } else {
-                v
+            // has no VMAXNM). Both ordered tests are false for NaN, which goes to `lower`.
+            if !(*v >= lower && *v <= upper) {
+                *v = if *v > upper { upper } else { lower };
             }
-        })
+        }
     }
 
     /// `Ok` if `theta` is finite and inside the box; otherwise an error naming it `what`.
@@ -227,6 +241,15 @@ mod tests {
         let wild = Vector::<4>::from([f32::NAN, f32::INFINITY, -f32::INFINITY, 0.0]);
         let c = b.clamp(&wild);
         assert!(b.contains(&c));
+        // NaN → lower, ±∞ → the nearer bound, inside → unchanged (bit for bit).
+        assert_eq!(c, Vector::from([-1.0, 1e-6, 1e-3, 0.0]));
+        let inside = Vector::<4>::from([-0.0, 5e-7, 1.5e-3, -1e6]);
+        let kept = b.clamp(&inside);
+        assert!(
+            kept.iter()
+                .zip(inside.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
         assert_eq!(b.check(&wild, "theta"), Err(Error::NonFinite("theta")));
         assert_eq!(
             b.check(&Vector::from([2.0, 0.0, 1e-3, 0.0]), "theta"),

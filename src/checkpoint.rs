@@ -1,5 +1,7 @@
 //! A power-fail-safe checkpoint store on NOR flash, built on `sequential-storage`'s map.
 //!
+//! Available with the crate feature `checkpoint` (which turns on `serde`).
+//!
 //! A checkpoint is one [record] (an adapter, an optimizer, with the caller's RNG
 //! as a pair: anything [`Persistent`]). A `sequential-storage` item must fit in one flash
 //! page, while the record of a [`Cmaes`](crate::Cmaes) or a [`Rockstar`](crate::Rockstar)

@@ -1,12 +1,36 @@
+// The README is the crate page. Its links to the repository's files are reference-style,
+// defined at its end relative to the repository (right on the repository's own pages);
+// here the same labels are defined first, as docs.rs addresses of the packaged files of
+// this very version (`/crate/NAME/VERSION/source/PATH`), and the first definition of a
+// label wins. The docs.rs source view shows no anchors: the labels whose README target
+// names a section go to its page. `scripts/check-doc-links` checks the rendered page.
+#![doc = concat!(
+    "[getting-started]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/getting-started.md\n",
+    "[choosing-an-optimizer]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/choosing-an-optimizer.md\n",
+    "[peers-table]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/choosing-an-optimizer.md\n",
+    "[tuning]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/tuning.md\n",
+    "[safety]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/safety.md\n",
+    "[persistence]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/persistence.md\n",
+    "[persistence-recipe]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/persistence.md\n",
+    "[firmware]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/firmware.md\n",
+    "[porting]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/porting.md\n",
+    "[plants]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/plants.md\n",
+    "[figures-json]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/figures.json\n",
+    "[changelog]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/CHANGELOG.md\n",
+)]
 #![doc = include_str!("../README.md")]
 // The library never allocates and never needs std; its own unit tests run on the host with
 // std (the heapless idiom), so proptest and the test harness are available there.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+// docs.rs builds with `--cfg docsrs` on nightly: `doc_cfg` marks every feature-gated item
+// with the feature that enables it ("Available on crate feature ... only").
+#![cfg_attr(docsrs, feature(doc_cfg))]
 
 pub mod bounds;
 #[cfg(feature = "checkpoint")]
+#[cfg_attr(docsrs, doc(cfg(feature = "checkpoint")))]
 pub mod checkpoint;
 pub mod controller;
 pub mod cost;
@@ -14,6 +38,7 @@ pub mod error;
 pub mod optimizer;
 pub mod random;
 #[cfg(feature = "serde")]
+#[cfg_attr(docsrs, doc(cfg(feature = "serde")))]
 pub mod record;
 pub mod vector;
 
@@ -63,6 +88,8 @@ const _: () = {
     assert_format::<controller::EpisodeReport<3>>();
     assert_format::<controller::CorrectedPd<3, 6, 6, 18, controller::StateFeatures<6>>>();
     assert_format::<controller::PeriodicPd<10, 31>>();
+    assert_format::<controller::AdapterBuilder<1, 2, 2>>();
+    assert_format::<controller::Corrected<controller::Pd<1>, 1, 2, 2>>();
     assert_format::<cost::SurveyCost>();
     assert_format::<cost::QuadraticCost<3>>();
     assert_format::<cost::ApexHeightCost>();

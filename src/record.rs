@@ -1,5 +1,7 @@
 //! Versioned records of the library's state, for learning that survives a power cut.
 //!
+//! Available with the crate feature `serde`.
+//!
 //! Every optimizer, its configuration, the [`Adapter`](crate::controller::Adapter) with the
 //! controller and cost shaper it holds, [`Bounds`](crate::Bounds) and
 //! [`Vector`](crate::Vector) implement `serde`'s `Serialize`/`Deserialize` under the `serde`
@@ -300,8 +302,8 @@ pub(crate) mod array {
 mod shapes {
     use super::{Error, Persistent, Shape};
     use crate::controller::{
-        Adapter, CorrectedPd, EpisodeRunner, IdentityFeatures, LinearPolicy, Pd, PeriodicPd,
-        PeriodicRbf, StateFeatures,
+        Adapter, Corrected, CorrectedPd, EpisodeRunner, IdentityFeatures, LinearPolicy, Pd,
+        PeriodicPd, PeriodicRbf, StateFeatures,
     };
     use crate::cost::{ApexHeightCost, QuadraticCost, SurveyCost};
     use crate::optimizer::{
@@ -437,6 +439,17 @@ mod shapes {
         for CorrectedPd<A, S, F, P, M>
     {
         const SHAPE: Shape = Shape::new(*b"CPD_", &[A, S, F, P]).nest(M::SHAPE);
+
+        fn validate(&self) -> Result<(), Error> {
+            self.check_decoded()
+        }
+    }
+    /// Your nominal law `N` is saved with it (its `Persistent` impl is yours; a closure
+    /// cannot be saved: give the law a type).
+    impl<N: Persistent, const A: usize, const S: usize, const P: usize> Persistent
+        for Corrected<N, A, S, P>
+    {
+        const SHAPE: Shape = Shape::new(*b"CORR", &[A, S, P]).nest(N::SHAPE);
 
         fn validate(&self) -> Result<(), Error> {
             self.check_decoded()

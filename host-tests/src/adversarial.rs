@@ -632,7 +632,7 @@ where
         // The episode in progress: θ, mode, ticks, faulty ticks, as the driver counts them.
         let mut episode: Option<(Vector<2>, Mode, u32, u32)> = None;
         let mut learned = 0u32;
-        let controller = driver_controller();
+        let mut controller = driver_controller();
         while op < operations {
             op += 1;
             tally.operations += 1;

@@ -220,7 +220,7 @@ pub fn run_adapter<O: Optimizer<2>>(
         if adapter.mode() != Mode::Nominal && bounds.check(&theta, "theta").is_err() {
             return Err(format!("episode {episode}: θ {theta:?} in {bounds:?}?"));
         }
-        let controller = *adapter.controller();
+        let mut controller = *adapter.controller();
         let limit = controller.pd().limit()[0];
         let envelope = match adapter.mode() {
             Mode::Nominal => 0.0,

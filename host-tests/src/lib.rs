@@ -17,6 +17,7 @@ pub mod cut_flash;
 pub mod double_integrator;
 pub mod forgery;
 pub mod functions;
+pub mod guide;
 pub mod hopper;
 pub mod hopper_task;
 pub mod hopper_tuning;

@@ -3,8 +3,6 @@
 //! episodes or in the middle of one, runs exactly as the uninterrupted learner, although no
 //! RNG state is saved.
 
-use std::path::Path;
-
 use ctrl_adapt::controller::Adapter;
 use ctrl_adapt::record;
 use ctrl_adapt::{Optimizer, Vector};
@@ -12,6 +10,7 @@ use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 use host_tests::double_integrator::DoubleIntegrator;
+use host_tests::guide::{self, read};
 use persistent_adapter::{DEVICE_SEED, Learner, RECORD, Robot, SLOTS, boot, episode};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -21,24 +20,9 @@ const TICKS: u32 = 100;
 /// Episodes per run: SRACOS's 12 uniform draws, then 28 drawn around its best.
 const EPISODES: u32 = 40;
 
-/// The code blocks of docs/persistence.md that follow the marker line `marker`.
+/// The code block of docs/persistence.md after the marker line `marker`.
 fn block_after(doc: &str, marker: &str) -> String {
-    let start = doc
-        .find(marker)
-        .unwrap_or_else(|| panic!("docs/persistence.md has no `{marker}`"));
-    let rest = &doc[start..];
-    let open = rest.find("```").expect("a code block after the marker");
-    let body = &rest[open..];
-    let body = &body[body.find('\n').expect("a fence line") + 1..];
-    body[..body.find("\n```").expect("a closing fence") + 1].to_string()
-}
-
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap()
-}
-
-fn read(path: &str) -> String {
-    std::fs::read_to_string(root().join(path)).unwrap_or_else(|e| panic!("{path}: {e}"))
+    guide::block_after(doc, marker, "docs/persistence.md")
 }
 
 /// Checks: the Rust block of the guide's recipe is `src/lib.rs` of the example, byte for

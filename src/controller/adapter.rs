@@ -203,6 +203,7 @@ where
             return Err(AdapterError::EpisodeInProgress);
         }
         self.shaper.reset();
+        self.controller.reset();
         self.episode = Some(Episode {
             theta,
             mode,
@@ -219,23 +220,29 @@ where
     /// and nothing is recorded.
     pub fn control(&mut self, state: &Vector<S>, observation: &Sh::Observation) -> Vector<A> {
         let Some(episode) = self.episode.as_mut() else {
-            return finite_or(self.controller.nominal(state, 0.0), || {
-                self.controller.safe_action()
-            });
+            let nominal = self.controller.nominal(state, 0.0);
+            return finite_or(nominal, || self.controller.safe_action());
         };
         let time = episode.ticks as f32 * self.config.dt;
         let state_ok = state.iter().all(|v| v.is_finite());
-        let action = match episode.mode {
-            Mode::Nominal => self.controller.nominal(state, time),
-            _ if !state_ok => self.controller.nominal(state, time),
-            _ => self.controller.corrected(&episode.theta, state, time),
+        // One call of the controller per tick (it may keep state), except for the fallback
+        // after a non-finite corrected action (see `Controller`).
+        let correcting = state_ok && episode.mode != Mode::Nominal;
+        let action = if correcting {
+            self.controller.corrected(&episode.theta, state, time)
+        } else {
+            self.controller.nominal(state, time)
         };
         let action_ok = action.iter().all(|v| v.is_finite());
         let action = if state_ok && action_ok {
             action
         } else {
             episode.faulty_ticks = episode.faulty_ticks.saturating_add(1);
-            let nominal = self.controller.nominal(state, time);
+            let nominal = if correcting {
+                self.controller.nominal(state, time)
+            } else {
+                action
+            };
             finite_or(nominal, || self.controller.safe_action())
         };
         episode.ticks = episode.ticks.saturating_add(1);
@@ -283,6 +290,13 @@ where
     /// The controller.
     pub fn controller(&self) -> &C {
         &self.controller
+    }
+
+    /// The controller, mutable: to change its gains between episodes, or to run its nominal
+    /// law outside the tick loop (a link fault's fallback). Calls made here are not ticks:
+    /// they are not counted, and a stateful controller sees them.
+    pub fn controller_mut(&mut self) -> &mut C {
+        &mut self.controller
     }
 
     /// The cost shaper (its running figures, e.g. the survey's minimum distance).
@@ -478,6 +492,11 @@ where
         self.runner.controller()
     }
 
+    /// The controller, mutable (see [`EpisodeRunner::controller_mut`]).
+    pub fn controller_mut(&mut self) -> &mut C {
+        self.runner.controller_mut()
+    }
+
     /// The cost shaper (its running figures, e.g. the survey's minimum distance).
     pub fn shaper(&self) -> &Sh {
         self.runner.shaper()
@@ -633,12 +652,84 @@ mod tests {
     struct BrokenCorrection;
 
     impl Controller<2, 2, 1> for BrokenCorrection {
-        fn nominal(&self, state: &Vector<2>, _time: f32) -> Vector<1> {
+        fn nominal(&mut self, state: &Vector<2>, _time: f32) -> Vector<1> {
             Vector::repeat(-state[0])
         }
-        fn corrected(&self, _theta: &Vector<2>, _state: &Vector<2>, _time: f32) -> Vector<1> {
+        fn corrected(&mut self, _theta: &Vector<2>, _state: &Vector<2>, _time: f32) -> Vector<1> {
             Vector::repeat(f32::NAN)
         }
+    }
+
+    /// A PD that differentiates its own error (it keeps the previous one) and counts the
+    /// calls it gets.
+    #[derive(Debug, Clone, Copy, Default)]
+    struct DifferentiatingPd {
+        previous: Option<f32>,
+        nominal_calls: u32,
+        corrected_calls: u32,
+        resets: u32,
+    }
+
+    impl DifferentiatingPd {
+        /// u = 2e + 0.5 ė, ė by difference over the 0.1 s tick (0 on the first tick).
+        fn pd(&mut self, error: f32) -> f32 {
+            let rate = self.previous.map_or(0.0, |p| (error - p) / 0.1);
+            self.previous = Some(error);
+            2.0 * error + 0.5 * rate
+        }
+    }
+
+    impl Controller<2, 2, 1> for DifferentiatingPd {
+        fn nominal(&mut self, state: &Vector<2>, _time: f32) -> Vector<1> {
+            self.nominal_calls += 1;
+            Vector::repeat(self.pd(state[0]))
+        }
+        fn corrected(&mut self, theta: &Vector<2>, state: &Vector<2>, _time: f32) -> Vector<1> {
+            self.corrected_calls += 1;
+            Vector::repeat(self.pd(state[0]) + theta[0] * state[0])
+        }
+        fn reset(&mut self) {
+            self.previous = None;
+            self.resets += 1;
+        }
+    }
+
+    /// Checks: a controller that keeps state gets one call per tick (corrected while
+    /// learning, nominal in `Mode::Nominal` and outside episodes), sees its own previous
+    /// error (the derivative term is the finite difference), and is reset when an episode
+    /// begins.
+    #[test]
+    fn a_stateful_controller_gets_one_call_per_tick_and_a_reset_per_episode() {
+        let search = *adapter(CONFIG, 100).optimizer();
+        let mut a = Adapter::try_new(
+            search,
+            DifferentiatingPd::default(),
+            SetCost(1.0),
+            CONFIG,
+            Vector::zeros(),
+        )
+        .unwrap();
+        let mut r = rng();
+        let theta = a.begin_episode(&mut r).unwrap();
+        let u0 = a.control(&Vector::from([1.0, 0.0]), &1.0)[0];
+        let u1 = a.control(&Vector::from([0.8, 0.0]), &1.0)[0];
+        assert!(
+            (u0 - (2.0 + theta[0])).abs() < 1e-6,
+            "first tick: no rate yet"
+        );
+        let expected = 2.0 * 0.8 + 0.5 * (0.8 - 1.0) / 0.1 + theta[0] * 0.8;
+        assert!((u1 - expected).abs() < 1e-5, "{u1} against {expected}");
+        a.end_episode().unwrap();
+        let c = *a.controller();
+        assert_eq!((c.corrected_calls, c.nominal_calls, c.resets), (2, 0, 1));
+        a.control(&Vector::from([0.8, 0.0]), &1.0); // between episodes: nominal, once
+        a.set_mode(Mode::Nominal).unwrap();
+        a.begin_episode(&mut r).unwrap();
+        a.control(&Vector::from([0.5, 0.0]), &1.0);
+        a.control(&Vector::from([f32::NAN, 0.0]), &1.0); // faulty, still one call
+        a.end_episode().unwrap();
+        let c = *a.controller();
+        assert_eq!((c.corrected_calls, c.nominal_calls, c.resets), (2, 3, 2));
     }
 
     #[test]

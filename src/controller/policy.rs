@@ -309,7 +309,7 @@ impl<const C: usize, const F: usize, M: crate::record::Persistent> LinearPolicy<
 /// let pd = Pd::<3>::try_new(Vector::repeat(0.3), Vector::repeat(0.1))?
 ///     .with_limit(Vector::repeat(2.0))?;
 /// let policy = LinearPolicy::<3, 6, _>::try_new(StateFeatures::<6>::identity(), Vector::repeat(0.5))?;
-/// let auv = CorrectedPd::<3, 6, 6, 18, _>::new(pd, policy);
+/// let mut auv = CorrectedPd::<3, 6, 6, 18, _>::new(pd, policy);
 /// let state = Vector::<6>::from([2.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
 /// let mut theta = Vector::<18>::zeros();
 /// assert_eq!(auv.corrected(&theta, &state, 0.0), auv.nominal(&state, 0.0));
@@ -371,13 +371,14 @@ impl<const A: usize, const S: usize, const F: usize, const P: usize, M> Controll
 where
     M: FeatureMap<S, F>,
 {
-    fn nominal(&self, state: &Vector<S>, _time: f32) -> Vector<A> {
+    fn nominal(&mut self, state: &Vector<S>, _time: f32) -> Vector<A> {
         self.pd.saturate(&self.unsaturated(state))
     }
 
-    fn corrected(&self, theta: &Vector<P>, state: &Vector<S>, time: f32) -> Vector<A> {
+    fn corrected(&mut self, theta: &Vector<P>, state: &Vector<S>, time: f32) -> Vector<A> {
         let c = self.policy.correction(theta, state, time);
-        self.pd.saturate(&(self.nominal(state, time) + c))
+        let nominal = self.nominal(state, time);
+        self.pd.saturate(&(nominal + c))
     }
 }
 
@@ -474,14 +475,14 @@ fn check_reference<const K: usize>(
 }
 
 impl<const K: usize, const P: usize> Controller<P, 4, 2> for PeriodicPd<K, P> {
-    fn nominal(&self, state: &Vector<4>, time: f32) -> Vector<2> {
+    fn nominal(&mut self, state: &Vector<4>, time: f32) -> Vector<2> {
         let map = self.policy.map();
         let (phi, dphi) = map.features_and_rates(time, map.period(0.0));
         let (r, dr) = (self.knee_weights.dot(&phi), self.knee_weights.dot(&dphi));
         self.torques(state, r, dr, &Vector::zeros())
     }
 
-    fn corrected(&self, theta: &Vector<P>, state: &Vector<4>, time: f32) -> Vector<2> {
+    fn corrected(&mut self, theta: &Vector<P>, state: &Vector<4>, time: f32) -> Vector<2> {
         let map = self.policy.map();
         let learned = LinearPolicy::<3, K, PeriodicRbf<K>>::learned(theta);
         let period = map.period(learned.first().copied().unwrap_or(0.0));
@@ -556,13 +557,13 @@ mod tests {
 
     #[test]
     fn zero_correction_is_the_nominal_controller() {
-        let auv = auv();
+        let mut auv = auv();
         let s = Vector::<6>::from([3.0, -1.0, 0.5, 0.2, 0.0, -0.3]);
         assert_eq!(
             auv.corrected(&Vector::<18>::zeros(), &s, 0.0),
             auv.nominal(&s, 0.0)
         );
-        let leg = leg();
+        let mut leg = leg();
         let q = Vector::<4>::from([-1.0, 0.5, 0.3, -0.1]);
         for t in [0.0, 0.11, 0.37] {
             let a = leg.corrected(&Vector::<31>::zeros(), &q, t);
@@ -576,7 +577,7 @@ mod tests {
     /// gives 1 − 0.4 = 0.6, not sat(1.5 − 0.4) = 1; the sum is saturated again.
     #[test]
     fn correction_is_added_to_the_saturated_pd_output() {
-        let auv = auv();
+        let mut auv = auv();
         let s = Vector::<6>::from([5.0, -5.0, 0.0, 0.0, 0.0, 0.0]);
         assert_eq!(auv.nominal(&s, 0.0), Vector::from([1.0, -1.0, 0.0]));
         let mut theta = Vector::<18>::zeros();
@@ -663,7 +664,7 @@ mod tests {
             theta in prop::array::uniform18(proptest::num::f32::ANY),
             state in prop::array::uniform6(proptest::num::f32::ANY),
         ) {
-            let auv = auv();
+            let mut auv = auv();
             let (theta, state) = (Vector::from(theta), Vector::from(state));
             let c = auv.policy().correction(&theta, &state, 0.0);
             prop_assert!(c.iter().all(|v| v.abs() <= 0.4));
@@ -682,7 +683,7 @@ mod tests {
             time in 0.0f32..100.0,
             state in prop::array::uniform4(-10.0f32..10.0),
         ) {
-            let leg = leg();
+            let mut leg = leg();
             let theta = Vector::<31>::from_column_slice(&w);
             let phi = leg.policy().map().features_and_rates(time, 0.6).0;
             let c = leg.policy().correction_from_features(&theta, &phi);

@@ -120,8 +120,8 @@ impl<const N: usize> Ledger<N> {
     /// projects rather than returns an error because an error would stop learning for good
     /// (a state that proposes NaN once proposes it again) while the projected θ is as safe
     /// as any candidate; and it lives here, in the one place every `ask` passes through.
-    pub(crate) fn hand_out(&mut self, theta: Vector<N>, bounds: &Bounds<N>) -> Vector<N> {
-        let theta = bounds.clamp(&theta);
+    pub(crate) fn hand_out(&mut self, mut theta: Vector<N>, bounds: &Bounds<N>) -> Vector<N> {
+        bounds.project(&mut theta);
         self.pending = Some(theta);
         theta
     }

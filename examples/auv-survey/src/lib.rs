@@ -367,8 +367,8 @@ impl<O: Optimizer<P>> AuvLearner<O> {
     }
 
     /// The nominal PD on `state`, or the safe action (zero) if that is not finite.
-    fn nominal(&self, state: &Vector<S>) -> Vector<A> {
-        let controller = self.adapter.controller();
+    fn nominal(&mut self, state: &Vector<S>) -> Vector<A> {
+        let controller = self.adapter.controller_mut();
         let u = controller.nominal(state, 0.0);
         if u.iter().all(|v| v.is_finite()) {
             u

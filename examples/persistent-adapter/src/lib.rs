@@ -29,11 +29,11 @@ pub struct FeedForwardPd {
 pub const C_MAX: f32 = 3.0;
 
 impl Controller<2, 2, 1> for FeedForwardPd {
-    fn nominal(&self, state: &Vector<2>, _time: f32) -> Vector<1> {
+    fn nominal(&mut self, state: &Vector<2>, _time: f32) -> Vector<1> {
         Vector::from([self.kp * state[0] - self.kd * state[1]])
     }
 
-    fn corrected(&self, theta: &Vector<2>, state: &Vector<2>, time: f32) -> Vector<1> {
+    fn corrected(&mut self, theta: &Vector<2>, state: &Vector<2>, time: f32) -> Vector<1> {
         let c = (theta[0] + theta[1] * state[0]).clamp(-C_MAX, C_MAX);
         self.nominal(state, time) + Vector::from([c])
     }

@@ -113,6 +113,19 @@ fn run_fingerprint(seed: u64) -> (u64, u32) {
     (hash, s.evaluations())
 }
 
+/// Writes and reads a local array of `WORDS` words, so its frame holds at least 4·`WORDS`
+/// bytes; never inlined, so that the frame is its own.
+#[inline(never)]
+fn frame_of<const WORDS: usize>() -> u32 {
+    let mut words = [0u32; WORDS];
+    for (i, w) in words.iter_mut().enumerate() {
+        *w = core::hint::black_box(i as u32);
+    }
+    core::hint::black_box(&mut words)
+        .iter()
+        .fold(0, |a, &w| a ^ w)
+}
+
 /// An RNG that always returns the largest value, the edge case of `unit_f32`.
 struct Saturated;
 impl RngCore for Saturated {
@@ -355,8 +368,8 @@ mod tests {
     /// θ = 0 gives exactly the nominal PD.
     #[test]
     fn policy_correction_stays_in_its_envelope() {
-        let controller = auv::controller().unwrap();
-        let policy = controller.policy();
+        let mut controller = auv::controller().unwrap();
+        let policy = *controller.policy();
         let mut r = rng(21);
         for _ in 0..2_000 {
             let theta = Vector::<18>::from_fn(|_, _| wild(&mut r, 2.0));
@@ -391,7 +404,7 @@ mod tests {
     #[test]
     fn adapter_fallbacks_never_tell_a_non_finite_cost() {
         let mut a = auv::adapter(auv::coordinate_search(u32::MAX).unwrap(), u32::MAX).unwrap();
-        let controller = *a.controller();
+        let mut controller = *a.controller();
         let mut r = rng(22);
         let mut learned = 0;
         for episode in 0..120u32 {
@@ -466,7 +479,7 @@ mod tests {
         let mut l =
             auv::AuvLearner::try_new(auv::coordinate_search(u32::MAX).unwrap(), u32::MAX, 1)
                 .unwrap();
-        let controller = auv::controller().unwrap();
+        let mut controller = auv::controller().unwrap();
         let mut theta = pil_link::Values::new();
         l.start_episode(0, &[], &mut theta);
         let mut u = pil_link::Values::new();
@@ -619,5 +632,33 @@ mod tests {
         )
         .unwrap();
         candidates_in_bounds::<18, _>(rock, &mut r, 300);
+    }
+
+    /// `stack::measure` (the paint and scan of `scripts/sizes`) counts a call's frame: a call
+    /// holding a 1 KiB array measures at least 1 KiB and not much more (its frame's saved
+    /// registers and the paint guard: under 256 B more); a 2 KiB one 1 KiB more than that,
+    /// to within a few words; measuring again after a deeper call forgets the deeper one.
+    #[test]
+    fn stack_measure_counts_a_call_frame() {
+        let (_, one) = ctrl_adapt_firmware::stack::measure(frame_of::<256>);
+        let (_, two) = ctrl_adapt_firmware::stack::measure(frame_of::<512>);
+        let (_, again) = ctrl_adapt_firmware::stack::measure(frame_of::<256>);
+        defmt::info!(
+            "stack::measure: 1 KiB frame {=u32} B, 2 KiB frame {=u32} B",
+            one,
+            two
+        );
+        assert!(
+            (1024..1024 + 256).contains(&one),
+            "1 KiB frame measured {}",
+            one
+        );
+        assert!(
+            (i64::from(two) - i64::from(one) - 1024).abs() <= 16,
+            "2 KiB frame {}, 1 KiB frame {}",
+            two,
+            one
+        );
+        assert_eq!(again, one);
     }
 }

@@ -165,7 +165,7 @@ fn plant() -> AuvPlant {
 /// One clean host episode (no link, no faults) of the AUV controller with correction θ
 /// (`None`: the bare PD); the host's cost.
 fn host_episode(theta: Option<&Vector<{ auv::P }>>, ticks: u16) -> f64 {
-    let controller = auv::controller().expect("documented configuration");
+    let mut controller = auv::controller().expect("documented configuration");
     let mut plant = plant();
     plant.reset(0);
     for _ in 0..ticks {

@@ -328,7 +328,7 @@ fn controller_layer(rng: &mut Rng) -> bool {
     };
     let scaled = LinearPolicy::<3, 6, _>::try_new(features, gains(rng));
     let Ok(scaled) = scaled else { return false };
-    let corrected = CorrectedPd::<3, 6, 6, 18, _>::new(pd, scaled);
+    let mut corrected = CorrectedPd::<3, 6, 6, 18, _>::new(pd, scaled);
     for _ in 0..500 {
         let theta = wild_state::<18>(rng);
         let x = wild_state::<6>(rng);
