@@ -3,25 +3,9 @@
 //! `M` remembered episodes (Rasmussen & Williams, "Gaussian Processes for Machine
 //! Learning", 2006, algorithm 2.1, with the factor kept up to date point by point).
 //!
-//! * **Kernel.** k(x, x') = σ_f² exp(−‖x − x'‖² / (2ℓ²)) on x ∈ [−1, 1]ⁿ, ℓ = 2 × the
-//!   configured length scale (which is relative to the box's width).
-//! * **Noise and jitter.** The observations carry the variance σ_n² + jitter·σ_f²: the
-//!   jitter keeps every pivot of the Cholesky factor of K + σ²I at least that large in
-//!   exact arithmetic, so that f32 rounding (relative 6·10⁻⁸ per operation, a few 10⁻⁶
-//!   over a 64-term sum) cannot make it indefinite.
-//! * **Appending** a point costs one forward substitution, O(n²): the new row of L is
-//!   L⁻¹k(X, x) and its pivot the Schur complement k(x, x) + σ² − ‖L⁻¹k‖². A pivot that
-//!   rounding has pushed below half its theoretical floor σ² triggers a refactorisation
-//!   from the kernel matrix, O(n³/6), in which any pivot below σ² is replaced by σ².
-//! * **Eviction.** With `M` points held, the point least correlated with the point the
-//!   search is working around (the current line's origin), that is the farthest from it in
-//!   the kernel's metric, is dropped, and L is refactored. Near points decide the line the
-//!   search works on; a far point adds almost nothing there, and in the safe variant
-//!   dropping it only widens the confidence intervals around the line, which shrinks the
-//!   safe set rather than grows it (up to its small pull on the mean).
-//! * **Extreme costs.** A residual (cost − prior mean) is clipped to ±10⁶ σ_f in the model
-//!   (the optimizer's best keeps the true cost), so any finite f32 cost keeps the weights
-//!   K⁻¹y finite.
+//! The kernel, the factor's updates, the eviction rule and the clipping of extreme costs are
+//! documented in the public module docs of [`LineBo`](super::LineBo), section "The Gaussian
+//! process".
 
 use nalgebra::{SMatrix, SVector};
 
