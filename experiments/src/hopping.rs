@@ -398,7 +398,7 @@ pub fn scaled_leg(mass_scale: f64, stiffness_scale: f64) -> HopperConfig {
         shank_mass: c.shank_mass * mass_scale,
         thigh_inertia: c.thigh_inertia * mass_scale,
         shank_inertia: c.shank_inertia * mass_scale,
-        ground_stiffness: c.ground_stiffness * stiffness_scale,
+        contact: c.contact.scaled(stiffness_scale, 1.0),
         ..c
     }
 }

@@ -24,10 +24,28 @@
 //! 1 kHz control step; the joint torques are held over the period, a zero-order hold).
 //!
 //! # Contact
-//! The foot is a point. The normal force is a linear spring–damper on the penetration
-//! δ = h_g − y_f: N = max(0, k δ − c ẏ_f) when δ > 0 (never pulling). The tangential force is
+//! The foot is a point. The normal force is a function of the penetration δ = h_g − y_f and
+//! its rate δ̇ = −ẏ_f, chosen by [`HopperConfig::contact`] ([`Contact`]):
+//! * **Hunt–Crossley** (the default, [`Contact::RUBBER_FOOT_ON_WOOD`]):
+//!   N = max(0, k δⁿ + λ δⁿ δ̇) with n = 3/2 (Hunt & Crossley 1975; Marhefka & Orin, "A
+//!   compliant contact model with nonlinear damping for simulation of robotic systems", IEEE
+//!   SMC-A 1999, eq. 2). The damping grows with δ, so the force is zero at touchdown whatever
+//!   the speed and continuous through the contact. λ = 3/2 α k (their eq. 12), α setting
+//!   the coefficient of restitution e ≈ 1 − α v at impact speed v. k = 4/3 E* √R is Hertz's
+//!   sphere-on-plane stiffness for an **assumed** rubber ball foot of radius R = 3 cm
+//!   (E ≈ 5 MPa, ν = 0.5) on wood (so much stiffer that E* ≈ E/(1 − ν²) ≈ 6.7 MPa):
+//!   k = 1.5·10⁶ N/m^1.5, a static sinkage of 0.9 mm under the leg's 41 N. α = 0.2 s/m
+//!   is the default of RigidBodyDynamics.jl's `hunt_crossley_hertz` (k there is a generic
+//!   5·10⁴); it gives e ≈ 0.6 at the ≈ 2 m/s touchdown from a 0.6 m apex. Neither number
+//!   was measured on the paper's wood.
+//! * **Linear spring–damper** ([`Contact::LINEAR_SPRING_DAMPER`], the plant's first law,
+//!   bit for bit): N = max(0, k δ + c δ̇), 5·10⁴ N/m and 200 N·s/m (assumptions). Its damper
+//!   pushes c·v ≈ 400 N the instant the foot touches.
+//!
+//! The tangential force is
 //! a stick–slip model: at touchdown the foot's x is anchored, and F_x = −k_t (x_f − x_anchor)
-//! − c_t ẋ_f, limited to |F_x| ≤ μN; when the stick spring would exceed the cone, the anchor is
+//! − c_t ẋ_f, limited to |F_x| ≤ μN; when the stick spring would exceed the cone (μ times the
+//! spring part of N), the anchor is
 //! dragged so that the foot slides. Friction is needed even though the body moves only
 //! vertically: without it, the stance leg has nothing to push the knee torque's reaction
 //! against and the hip has to hold the whole knee torque (a first frictionless version
@@ -50,8 +68,9 @@
 //! goal is light segments with the centre of mass near the hip); a 0.5 kg thigh with its
 //! centre 5 cm below the hip; a 0.2 kg shank with its centre 10 cm below the knee; 0.01 kg·m²
 //! reflected actuator inertia per joint; 30 N·m torque limits; hip range ±1.2 rad, knee range
-//! [−2.5, −0.1] rad with stiff stops beyond; a ground of 5·10⁴ N/m and 200 N·s/m (≈ 0.8 mm
-//! static sinkage), tangential 5·10⁴ N/m and 200 N·s/m, μ = 0.8. A first choice of a 6 kg body
+//! [−2.5, −0.1] rad with stiff stops beyond; the ground contact above (the Hertz stiffness
+//! and α are sourced, the foot's size and rubber are assumed), tangential 5·10⁴ N/m and
+//! 200 N·s/m, μ = 0.8. A first choice of a 6 kg body
 //! could reach the 0.6 m apex only with the knee torque saturated for a fifth of the time, so
 //! the body was lightened to 3.5 kg (4.2 kg in all). The values are in
 //! [`HopperConfig::SCARLETH`]; the nominal controller that hops at 0.6 m on them is
@@ -134,10 +153,8 @@ pub struct HopperConfig {
     pub limit_stiffness: f64,
     /// Damping of the joint-limit stops (N·m·s/rad), acting only inside a stop.
     pub limit_damping: f64,
-    /// Ground stiffness k (N/m).
-    pub ground_stiffness: f64,
-    /// Ground damping c (N·s/m).
-    pub ground_damping: f64,
+    /// The normal contact law of the foot on the ground ([`Contact`]).
+    pub contact: Contact,
     /// Tangential (stick) stiffness of the foot contact (N/m).
     pub tangential_stiffness: f64,
     /// Tangential damping of the foot contact (N·s/m).
@@ -185,8 +202,7 @@ impl HopperConfig {
         knee_range: [-2.5, -0.1],
         limit_stiffness: 300.0,
         limit_damping: 3.0,
-        ground_stiffness: 5.0e4,
-        ground_damping: 200.0,
+        contact: Contact::RUBBER_FOOT_ON_WOOD,
         tangential_stiffness: 5.0e4,
         tangential_damping: 200.0,
         friction: 0.8,
@@ -242,7 +258,8 @@ impl HopperConfig {
         let pos = |v: f64| v.is_finite() && v > 0.0;
         let non_neg = |v: f64| v.is_finite() && v >= 0.0;
         let range = |r: [f64; 2]| r[0].is_finite() && r[1].is_finite() && r[0] < r[1];
-        let checks: [(bool, &'static str); 28] = [
+        self.contact.validate()?;
+        let checks: [(bool, &'static str); 26] = [
             (pos(self.gravity), "gravity"),
             (pos(self.body_mass), "body_mass"),
             (pos(self.thigh_mass), "thigh_mass"),
@@ -259,8 +276,6 @@ impl HopperConfig {
             (range(self.knee_range), "knee_range"),
             (non_neg(self.limit_stiffness), "limit_stiffness"),
             (non_neg(self.limit_damping), "limit_damping"),
-            (pos(self.ground_stiffness), "ground_stiffness"),
-            (non_neg(self.ground_damping), "ground_damping"),
             (pos(self.tangential_stiffness), "tangential_stiffness"),
             (non_neg(self.tangential_damping), "tangential_damping"),
             (non_neg(self.friction), "friction"),
@@ -295,6 +310,154 @@ impl HopperConfig {
 impl Default for HopperConfig {
     fn default() -> Self {
         Self::SCARLETH
+    }
+}
+
+/// The normal force of the foot on the ground as a function of the penetration δ = h_g − y_f
+/// (m) and its rate δ̇ (m/s, positive while the foot sinks in). Zero out of contact (δ ≤ 0),
+/// never pulling. See the module docs, "Contact", for the laws and where the numbers come
+/// from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Contact {
+    /// N = max(0, k δ + c δ̇): the Kelvin–Voigt spring–damper the plant used first. Its
+    /// damper acts at δ = 0, so the force jumps to c·v at touchdown and pulls (is clipped to
+    /// 0) before lift-off. Kept for comparison.
+    LinearSpringDamper {
+        /// k (N/m).
+        stiffness: f64,
+        /// c (N·s/m).
+        damping: f64,
+    },
+    /// N = max(0, k δⁿ + λ δⁿ δ̇) (Hunt & Crossley 1975; Marhefka & Orin 1999, eq. 2): the
+    /// damping grows with the penetration, so the force is 0 at touchdown whatever the speed
+    /// and continuous through the contact.
+    HuntCrossley {
+        /// k (N/mⁿ).
+        stiffness: f64,
+        /// n: 1.5 for a Hertzian (sphere on a plane) contact, 1 for a flat one.
+        exponent: f64,
+        /// λ (N·s/mⁿ⁺¹); [`Contact::hertz`] sets λ = 3/2 α k.
+        damping: f64,
+    },
+}
+
+impl Contact {
+    /// The linear ground the plant first used (assumptions): k = 5·10⁴ N/m, c = 200 N·s/m.
+    pub const LINEAR_SPRING_DAMPER: Self = Self::LinearSpringDamper {
+        stiffness: 5.0e4,
+        damping: 200.0,
+    };
+
+    /// A rubber ball foot of radius R = 3 cm on wood (the module docs give the derivation):
+    /// Hertz stiffness k = 4/3 E* √R = 1.5·10⁶ N/m^1.5 (E* = 6.7 MPa: rubber E ≈ 5 MPa,
+    /// ν = 0.5, on a much stiffer wood), α = 0.2 s/m (e ≈ 1 − α v ≈ 0.6 at the 2 m/s of a
+    /// touchdown from the 0.6 m apex).
+    pub const RUBBER_FOOT_ON_WOOD: Self = Self::hertz(1.5e6, 0.2);
+
+    /// Hunt–Crossley with the Hertzian exponent n = 3/2 and λ = 3/2 α k (Marhefka & Orin
+    /// 1999, eq. 12), α (s/m) setting the coefficient of restitution e ≈ 1 − α v at impact
+    /// speed v.
+    pub const fn hertz(stiffness: f64, alpha: f64) -> Self {
+        Self::HuntCrossley {
+            stiffness,
+            exponent: 1.5,
+            damping: 1.5 * alpha * stiffness,
+        }
+    }
+
+    /// The normal force (N) at penetration `depth` (m) and penetration rate `rate` (m/s,
+    /// positive sinking in): 0 when `depth` ≤ 0, never negative.
+    pub fn normal_force(&self, depth: f64, rate: f64) -> f64 {
+        if depth <= 0.0 {
+            return 0.0;
+        }
+        match *self {
+            Self::LinearSpringDamper { stiffness, damping } => {
+                (stiffness * depth + damping * rate).max(0.0)
+            }
+            Self::HuntCrossley {
+                stiffness,
+                exponent,
+                damping,
+            } => {
+                let d = depth.powf(exponent);
+                (stiffness * d + damping * d * rate).max(0.0)
+            }
+        }
+    }
+
+    /// The spring part of the force at `depth` (N; 0 out of contact): the static load, used
+    /// for the friction cone of the stick spring.
+    pub fn elastic_force(&self, depth: f64) -> f64 {
+        if depth <= 0.0 {
+            return 0.0;
+        }
+        match *self {
+            Self::LinearSpringDamper { stiffness, .. } => stiffness * depth,
+            Self::HuntCrossley {
+                stiffness,
+                exponent,
+                ..
+            } => stiffness * depth.powf(exponent),
+        }
+    }
+
+    /// The penetration (m) at which the spring part carries `load` (N): the static sinkage.
+    pub fn static_depth(&self, load: f64) -> f64 {
+        match *self {
+            Self::LinearSpringDamper { stiffness, .. } => load / stiffness,
+            Self::HuntCrossley {
+                stiffness,
+                exponent,
+                ..
+            } => (load / stiffness).powf(1.0 / exponent),
+        }
+    }
+
+    /// The same law with the stiffness k scaled by `stiffness` and the dissipation by
+    /// `damping`: c for the linear law; α = λ/(3/2 k) for Hunt–Crossley (λ scales by both,
+    /// so the restitution at a given speed depends on `damping` only).
+    pub fn scaled(&self, stiffness: f64, damping: f64) -> Self {
+        match *self {
+            Self::LinearSpringDamper {
+                stiffness: k,
+                damping: c,
+            } => Self::LinearSpringDamper {
+                stiffness: k * stiffness,
+                damping: c * damping,
+            },
+            Self::HuntCrossley {
+                stiffness: k,
+                exponent,
+                damping: l,
+            } => Self::HuntCrossley {
+                stiffness: k * stiffness,
+                exponent,
+                damping: l * stiffness * damping,
+            },
+        }
+    }
+
+    /// `Ok` for finite parameters with k > 0, damping ≥ 0 and 1 ≤ n ≤ 2; else the name of
+    /// the bad one.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        let (k, c, n) = match *self {
+            Self::LinearSpringDamper { stiffness, damping } => (stiffness, damping, 1.0),
+            Self::HuntCrossley {
+                stiffness,
+                exponent,
+                damping,
+            } => (stiffness, damping, exponent),
+        };
+        if !(k.is_finite() && k > 0.0) {
+            Err("contact.stiffness")
+        } else if !(c.is_finite() && c >= 0.0) {
+            Err("contact.damping")
+        } else if !(1.0..=2.0).contains(&n) {
+            Err("contact.exponent")
+        } else {
+            Ok(())
+        }
     }
 }
 
@@ -697,7 +860,7 @@ impl Hopper {
         }
         let xf = self.foot_x();
         let anchor = *self.anchor.get_or_insert(xf);
-        let limit = c.friction * c.ground_stiffness * depth / c.tangential_stiffness;
+        let limit = c.friction * c.contact.elastic_force(depth) / c.tangential_stiffness;
         let stretch = xf - anchor;
         if stretch.abs() > limit {
             self.anchor = Some(xf - stretch.signum() * limit);
@@ -807,7 +970,7 @@ impl Hopper {
         let depth = self.ground - foot_y;
         if depth > 0.0 {
             let foot_yd = yd + jf[1][1] * q1d + jf[1][2] * q2d;
-            let normal = (c.ground_stiffness * depth - c.ground_damping * foot_yd).max(0.0);
+            let normal = c.contact.normal_force(depth, -foot_yd);
             let foot_x = l1 * s1 + l2 * sa;
             let foot_xd = jf[0][1] * q1d + jf[0][2] * q2d;
             let anchor = self.anchor.unwrap_or(foot_x);

@@ -2,7 +2,7 @@
 //! from (Hwangbo et al., ROCK*, section IV): stable hopping at 0.6 m on flat ground, and an
 //! apex that varies by several centimetres over the paper's random blocks.
 
-use host_tests::hopper::{BLOCK_HEIGHTS, Hopper, HopperConfig, NominalHopping};
+use host_tests::hopper::{BLOCK_HEIGHTS, Contact, Hopper, HopperConfig, NominalHopping};
 
 /// Hops left out of the apex statistics: the start (a drop from rest at 0.6 m) is a transient.
 const TRANSIENT_HOPS: usize = 3;
@@ -47,10 +47,19 @@ fn a_limp_leg_falls_freely() {
 }
 
 /// Checks: standing still on the ground under a joint PD, the leg comes to rest with the foot
-/// sunk by total weight / ground stiffness (within 2 %), stuck under the hip (|x_f| < 1 mm).
+/// sunk by the static depth of the contact law under the total weight (within 2 %), stuck
+/// under the hip (|x_f| < 1 mm); on the linear ground and on the default one.
 #[test]
 fn standing_still_the_ground_carries_the_weight() {
-    let base = HopperConfig::flat();
+    for contact in [Contact::LINEAR_SPRING_DAMPER, Contact::RUBBER_FOOT_ON_WOOD] {
+        stands_on(HopperConfig {
+            contact,
+            ..HopperConfig::flat()
+        });
+    }
+}
+
+fn stands_on(base: HopperConfig) {
     let knee = -1.0;
     let config = HopperConfig {
         initial_knee: knee,
@@ -69,7 +78,9 @@ fn standing_still_the_ground_carries_the_weight() {
     let s = hopper.state();
     assert!(s.contact && s.body_velocity.abs() < 1e-4, "{s:?}");
     let sink = -hopper.foot_position()[1];
-    let expected = config.total_mass() * config.gravity / config.ground_stiffness;
+    let expected = config
+        .contact
+        .static_depth(config.total_mass() * config.gravity);
     assert!(
         (sink - expected).abs() < 0.02 * expected,
         "sink {sink}, expected {expected}"
@@ -220,7 +231,9 @@ fn series_elastic_leg_stands_on_its_springs() {
     let s = hopper.state();
     assert!(s.contact && s.body_velocity.abs() < 1e-4, "{s:?}");
     let sink = -hopper.foot_position()[1];
-    let expected = config.total_mass() * config.gravity / config.ground_stiffness;
+    let expected = config
+        .contact
+        .static_depth(config.total_mass() * config.gravity);
     assert!(
         (sink - expected).abs() < 0.02 * expected,
         "sink {sink}, expected {expected}"
@@ -255,4 +268,92 @@ fn series_elastic_leg_hops_with_its_nominal_gait() {
     assert!(a.len() >= 5, "{a:?}");
     assert!(a.iter().all(|h| (h - 0.6).abs() < 0.015), "{a:?}");
     assert_eq!(hopper.stats().torque_limit_steps, 0);
+}
+
+/// Checks: both contact laws give no force at zero penetration whatever the speed, no force
+/// out of contact, and never a negative (pulling) force, over a grid of depths and rates;
+/// Hunt–Crossley's force is continuous at touchdown (≤ 1 N at 1 µm at 3 m/s) where the
+/// linear law jumps to c·v.
+#[test]
+fn contact_force_is_zero_at_touchdown_and_never_pulls() {
+    let laws = [
+        Contact::LINEAR_SPRING_DAMPER,
+        Contact::RUBBER_FOOT_ON_WOOD,
+        Contact::HuntCrossley {
+            stiffness: 5e4,
+            exponent: 1.0,
+            damping: 1e4,
+        },
+    ];
+    for law in laws {
+        law.validate().unwrap();
+        for rate in [-10.0, -3.0, -0.5, 0.0, 0.5, 3.0, 10.0] {
+            assert_eq!(law.normal_force(0.0, rate), 0.0, "{law:?} at rate {rate}");
+            assert_eq!(law.normal_force(-1e-3, rate), 0.0, "{law:?} out of contact");
+            for i in 1..=100 {
+                let depth = f64::from(i) * 1e-4;
+                let f = law.normal_force(depth, rate);
+                assert!(f >= 0.0 && f.is_finite(), "{law:?} δ {depth} δ̇ {rate}: {f}");
+            }
+        }
+    }
+    let hc = Contact::RUBBER_FOOT_ON_WOOD.normal_force(1e-6, 3.0);
+    let linear = Contact::LINEAR_SPRING_DAMPER.normal_force(1e-6, 3.0);
+    assert!(hc < 1.0, "Hunt–Crossley at touchdown: {hc} N");
+    assert!(linear > 590.0, "the linear damper jumps: {linear} N");
+}
+
+/// Checks: an invalid contact law is rejected by name.
+#[test]
+fn invalid_contact_laws_are_named() {
+    let bad = |contact| {
+        HopperConfig {
+            contact,
+            ..HopperConfig::SCARLETH
+        }
+        .validate()
+    };
+    assert_eq!(bad(Contact::hertz(-1.0, 0.2)), Err("contact.stiffness"));
+    assert_eq!(bad(Contact::hertz(1e6, f64::NAN)), Err("contact.damping"));
+    let n = Contact::HuntCrossley {
+        stiffness: 1e6,
+        exponent: 3.0,
+        damping: 0.0,
+    };
+    assert_eq!(bad(n), Err("contact.exponent"));
+}
+
+/// Checks: the linear spring–damper reproduces the plant as it was before the contact law
+/// became configurable, bit for bit: the 19 apexes of the nominal gait over the blocks of
+/// seed 3 (recorded with the earlier code).
+#[test]
+fn the_linear_contact_reproduces_the_earlier_plant_bit_for_bit() {
+    let config = HopperConfig {
+        contact: Contact::LINEAR_SPRING_DAMPER,
+        ..HopperConfig::default()
+    };
+    let hopper = nominal_episode(config, 3);
+    let recorded: [u64; 19] = [
+        0x3fe2cbdec6e3bb19,
+        0x3fe35ef16e8e7824,
+        0x3fe50843b795e901,
+        0x3fe36b218cfdaaea,
+        0x3fe34b9e75f5edb1,
+        0x3fe3e8adf53775ae,
+        0x3fe3b7ac2a8cb35d,
+        0x3fe4f8eb4b13b72e,
+        0x3fe3540d2cd9abbb,
+        0x3fe2d024ad94ada4,
+        0x3fe3d6942ac8d5f6,
+        0x3fe5283d7437382a,
+        0x3fe3c6445e0d81a4,
+        0x3fe35e0d1ee7a69b,
+        0x3fe34e0b1932bc7c,
+        0x3fe327eae728c74e,
+        0x3fe33b78948c9caf,
+        0x3fe33af6e2a028d4,
+        0x3fe4fa1ca460342c,
+    ];
+    let bits: Vec<u64> = hopper.apex_heights().iter().map(|a| a.to_bits()).collect();
+    assert_eq!(bits, recorded);
 }
