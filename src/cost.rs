@@ -280,6 +280,17 @@ impl Default for ApexConfig {
 /// and by their energy; weighting the worst case of the episode aims the search at the
 /// variation itself.
 ///
+/// Two loopholes to close when setting the weights (both seen on a simulated hopping leg):
+/// * **Low apexes.** Apexes at or below `min_apex` are neither hops nor in the deviation and
+///   spread terms. Set `min_apex` low (e.g. the height at which the robot counts as fallen),
+///   so that a gait dropping into low hops pays for them in the spread, not only as missing
+///   hops.
+/// * **Hopping lower.** The deviation term (weight 1) is the set-height term. A gait Δ below
+///   the set height pays Δ² there and gains `spread_weight`·(s₁² − s₂²) if its spread
+///   shrinks from s₁ to s₂; with `spread_weight` = 10 a 5 cm lower gait paid as soon as it
+///   cut a 4 cm spread to 3.7 cm. Keep `spread_weight` near 1 (the other weights scaled
+///   with it) for the set height to hold.
+///
 /// An apex is the top of a flight: the vertical velocity changes sign from + to − with the
 /// body above `min_apex`. The squared deviation is in m², so a 5 cm spread of apexes costs
 /// about 6e-4 and 1 cm about 2.5e-5: weights of the other terms should be set against that.

@@ -18,7 +18,8 @@
 //! # The cost
 //! [`ApexHeightCost`] with the set height 0.6 m and the weights of [`apex_config`]: the mean
 //! squared apex deviation (≈ 1e-3 m² for the nominal policy over the blocks) plus small
-//! energy and limit terms and a large penalty per missing hop. Collapse (the body within
+//! energy and limit terms and a large penalty per missing hop; [`spread_apex_config`] adds
+//! the squared apex spread, weighted so that hopping lower than the set height does not pay. Collapse (the body within
 //! 0.15 m of the ground) aborts the episode, which the adapter tells as its failure cost.
 //!
 //! # Ticks
@@ -37,7 +38,7 @@ use nalgebra::{SMatrix, SVector};
 use rand_core::RngCore;
 
 use crate::Episodic;
-use crate::hopper::{Hopper, HopperConfig, NominalHopping};
+use crate::hopper::{BLOCK_HEIGHTS, Hopper, HopperConfig, NominalHopping};
 
 /// Periodic kernels per learned signal.
 pub const K: usize = 10;
@@ -169,16 +170,22 @@ pub fn coordinate_search(start: Vector<P>, budget: u32) -> Result<CoordinateSear
 /// Episode length of the experiments (s): 12 s, about 19 hops.
 pub const EPISODE: f64 = 12.0;
 
-/// The cost's weights: set height 0.6 m; an apex is a flight top above 0.45 m (a stance
-/// bounce stays below the longest leg, 0.39 m, plus the highest block); 16 hops expected in
-/// 12 s (19 at the nominal period, 16.6 at the longest learned one), 0.01 per missing hop
-/// (ten times the nominal's whole deviation term); energy 1e-6 per W of mean absolute
-/// mechanical power (≈ 6e-5 for the nominal's 56 W); 1e-6 per tick at a torque limit or in a
-/// joint stop.
+/// Lowest body height (m) at which the cost counts a flight top as an apex: the plant's
+/// collapse height, so every apex the leg reaches without collapsing counts, as a hop and in
+/// the deviation and spread terms. (It was 0.45 m, to leave out stance bounces; that let a
+/// low gait hide most of its apexes from the spread: a bounce in stance now costs its whole
+/// depth in the spread, as a low apex should.)
+pub const MIN_APEX: f32 = 0.15;
+
+/// The cost's weights: set height 0.6 m; every flight top above [`MIN_APEX`] is an apex;
+/// 16 hops expected in 12 s (19 at the nominal period, 16.6 at the longest learned one), 0.01
+/// per missing hop (ten times the nominal's whole deviation term); energy 1e-6 per W of mean
+/// absolute mechanical power (≈ 6e-5 for the nominal's 56 W); 1e-6 per tick at a torque
+/// limit or in a joint stop.
 pub fn apex_config() -> ApexConfig {
     ApexConfig {
         set_height: SET_HEIGHT,
-        min_apex: 0.45,
+        min_apex: MIN_APEX,
         expected_hops: 16,
         missing_hop_cost: 0.01,
         energy_weight: 1e-6,
@@ -187,20 +194,27 @@ pub fn apex_config() -> ApexConfig {
     }
 }
 
-/// Weight of the squared apex spread in [`spread_apex_config`]: a 2 cm spread costs 4·10⁻³,
-/// 1 cm 10⁻³, against ≈ 6·10⁻⁵ of energy and 1–5·10⁻⁵ of mean square deviation for policies
-/// at that level (the weight of the diagnostic's shaped cost, experiments/findings/hopping.md).
-pub const SPREAD_WEIGHT: f32 = 10.0;
+/// Weight of the squared apex spread in [`spread_apex_config`], relative to the mean squared
+/// deviation from the set height (weight 1). At 1 a gait hopping Δ lower pays Δ² in the
+/// deviation term and gains only what its spread s shrinks, s₁² − s₂²: a 5 cm lower gait
+/// must cut its spread from 6 cm to below 3.3 cm, or from 4 cm to nothing, to pay. (At the
+/// earlier weight 10 the set height counted ten times less: a 5 cm lower gait paid as soon
+/// as it cut a 4 cm spread to 3.7 cm, and robust learning settled 2–6 cm low.)
+pub const SPREAD_WEIGHT: f32 = 1.0;
 
 /// [`apex_config`] aimed at the apex variation, for learning on a new course every episode
-/// (`experiments::hopping::learn_on_fresh_courses`): the first [`TRANSIENT_HOPS`] apexes (the drop from rest)
-/// left out of the apex terms, plus [`SPREAD_WEIGHT`] · (max − min apex)²; the other
-/// weights as in [`apex_config`]. (0.05 per missing hop instead of 0.01, tried against
-/// policies dropping hops below the 0.45 m threshold, did worse; experiments/findings/hopping.md.)
+/// (`experiments::hopping::learn_sequentially`): the first [`TRANSIENT_HOPS`] apexes (the
+/// drop from rest) left out of the apex terms, plus [`SPREAD_WEIGHT`] · (max − min apex)²,
+/// and the other weights a tenth of [`apex_config`]'s (0.001 per missing hop, energy 1e-7
+/// per W, 1e-7 per tick at a limit), so that against the apex terms they weigh what they
+/// weighed with the earlier spread weight 10.
 pub fn spread_apex_config() -> ApexConfig {
     ApexConfig {
         transient_hops: TRANSIENT_HOPS as u32,
         spread_weight: SPREAD_WEIGHT,
+        missing_hop_cost: 0.001,
+        energy_weight: 1e-7,
+        violation_cost: 1e-7,
         ..apex_config()
     }
 }
@@ -338,6 +352,25 @@ impl HopEpisode {
     pub fn apex_mean(&self) -> f64 {
         let a = self.steady_apexes();
         a.iter().sum::<f64>() / a.len() as f64
+    }
+
+    /// The apexes (m) behind the block's extra apex, as the paper's figure shows it: those of
+    /// the hops launched from the 5.5 cm block ([`BLOCK_HEIGHTS`]'s highest) right after a lower one (the first stance on
+    /// a block just slid in), and those of the hops launched from the floor after the floor
+    /// (after the transient). The extra apex is the difference of their means, pooled over
+    /// courses by `experiments::hopping::block_extra_apex`.
+    pub fn block_apexes(&self) -> (Vec<f64>, Vec<f64>) {
+        let highest = BLOCK_HEIGHTS.iter().copied().fold(0.0, f64::max);
+        let (mut up, mut flat) = (Vec::new(), Vec::new());
+        for i in TRANSIENT_HOPS.max(1)..self.apexes.len().min(self.grounds.len()) {
+            let (before, now) = (self.grounds[i - 1], self.grounds[i]);
+            if now == highest && before < highest {
+                up.push(self.apexes[i]);
+            } else if now == 0.0 && before == 0.0 {
+                flat.push(self.apexes[i]);
+            }
+        }
+        (up, flat)
     }
 
     /// Hops in the episode.
@@ -489,4 +522,93 @@ pub fn evaluate_with<G: RngCore>(
     hopper.reset();
     runner.begin_episode(theta, Mode::Deploy)?;
     drive(&mut runner, hopper, record)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ctrl_adapt::cost::Shaper;
+
+    /// The cost `config` gives an episode whose apexes are `apexes` (m), at a mean
+    /// mechanical power `power` (W): each hop fed as a rising and a falling tick 0.3 s apart.
+    fn cost_of(config: ApexConfig, apexes: &[f32], power: f32) -> f32 {
+        let mut cost = ApexHeightCost::try_new(config).unwrap();
+        for &h in apexes {
+            for (height, vertical_velocity) in [(h - 0.001, 0.1), (h, -0.1)] {
+                let sample = HopSample {
+                    height,
+                    vertical_velocity,
+                    power,
+                    limit_violation: false,
+                };
+                cost.observe(&sample, 0.3);
+            }
+        }
+        cost.cost()
+    }
+
+    /// 3 transient hops at the set height, then `n` hops alternating `mean` ± `spread`/2.
+    fn gait(mean: f32, spread: f32, n: usize) -> Vec<f32> {
+        let mut a = vec![SET_HEIGHT; TRANSIENT_HOPS];
+        a.extend((0..n).map(|i| mean + if i % 2 == 0 { 0.5 } else { -0.5 } * spread));
+        a
+    }
+
+    /// Checks: a gait hopping 5 cm below the set height with the same spread costs more than
+    /// the gait at the set height, even with 20 % less power and three more hops, for spreads
+    /// of 1–6 cm; and it still costs more with a spread 1 cm smaller (the set-height term
+    /// outweighs it), from spreads of 2 cm up.
+    #[test]
+    fn a_lower_gait_does_not_pay() {
+        let config = spread_apex_config();
+        for s in [0.01, 0.02, 0.04, 0.06] {
+            let at_set = cost_of(config, &gait(0.6, s, 16), 56.0);
+            let lower = cost_of(config, &gait(0.55, s, 19), 45.0);
+            assert!(lower > at_set, "spread {s}: lower {lower} vs {at_set}");
+            if s >= 0.02 {
+                let tighter = cost_of(config, &gait(0.55, s - 0.01, 19), 45.0);
+                assert!(tighter > at_set, "spread {s}: {tighter} vs {at_set}");
+            }
+        }
+    }
+
+    /// Checks: apexes below the earlier 0.45 m threshold count as hops and in the spread: a
+    /// gait with 3 of its 16 hops at 0.40 m and the rest at the set height costs more than a
+    /// steady gait with the nominal's 7.6 cm spread. (With the threshold the low hops were
+    /// not counted in the spread and cost one missing hop: 0.01 against 0.058.)
+    #[test]
+    fn low_apexes_count_in_the_spread() {
+        let config = spread_apex_config();
+        let mut dropping = vec![SET_HEIGHT; TRANSIENT_HOPS + 13];
+        dropping.extend([0.40; 3]);
+        let steady = gait(0.6, 0.076, 16);
+        let (d, s) = (
+            cost_of(config, &dropping, 56.0),
+            cost_of(config, &steady, 56.0),
+        );
+        assert!(d > s, "dropping hops {d} vs steady {s}");
+        let mut counted = ApexHeightCost::try_new(config).unwrap();
+        for &h in &dropping {
+            counted.observe(
+                &HopSample {
+                    height: h - 0.001,
+                    vertical_velocity: 0.1,
+                    power: 0.0,
+                    limit_violation: false,
+                },
+                0.3,
+            );
+            counted.observe(
+                &HopSample {
+                    height: h,
+                    vertical_velocity: -0.1,
+                    power: 0.0,
+                    limit_violation: false,
+                },
+                0.3,
+            );
+        }
+        assert_eq!(counted.apexes() as usize, dropping.len());
+        assert!((counted.apex_spread() - 0.2).abs() < 1e-6);
+    }
 }
