@@ -885,3 +885,66 @@ pub fn map_seeds<T: Send>(seeds: &[u64], run: impl Fn(u64) -> T + Sync) -> Vec<T
     results.sort_by_key(|(i, _)| *i);
     results.into_iter().map(|(_, r)| r).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use host_tests::hopper::Contact;
+
+    /// Checks: a leg variant scales the leg's masses and inertias and the ground's stiffness
+    /// and dissipation (Hunt–Crossley: k by the stiffness scale, λ = 3/2 α k by both), and
+    /// the check's variants are the 6 one-at-a-time and the 8 corners, all distinct.
+    #[test]
+    fn leg_variants_scale_what_they_name() {
+        let leg = Leg {
+            mass: 1.1,
+            stiffness: 2.0,
+            damping: 0.5,
+        };
+        let (c, n) = (leg.config(), HopperConfig::SCARLETH);
+        assert_eq!(c.thigh_mass, n.thigh_mass * 1.1);
+        assert_eq!(c.shank_inertia, n.shank_inertia * 1.1);
+        assert_eq!(c.body_mass, n.body_mass);
+        let (
+            Contact::HuntCrossley {
+                stiffness: k,
+                damping: l,
+                ..
+            },
+            Contact::HuntCrossley {
+                stiffness: k0,
+                damping: l0,
+                ..
+            },
+        ) = (c.contact, n.contact)
+        else {
+            panic!("the default ground is Hunt–Crossley");
+        };
+        assert_eq!((k, l), (k0 * 2.0, l0 * 2.0 * 0.5));
+        assert_eq!(Leg::NOMINAL.config(), n);
+        let legs = check_legs();
+        assert_eq!(legs.len(), 14);
+        for (i, a) in legs.iter().enumerate() {
+            assert!(legs[i + 1..].iter().all(|b| b != a), "{a:?} twice");
+        }
+    }
+
+    /// Checks: worst-of-k tells the highest of its k costs and mean-of-k their mean, from the
+    /// same draws (same RNG seed): worst ≥ mean, and k rollouts are counted per episode.
+    #[test]
+    fn worst_of_k_is_at_least_mean_of_k() {
+        let apex = spread_apex_config();
+        let told = |score| {
+            let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+            let p = Perturbation {
+                score,
+                ..Perturbation::CHECK
+            };
+            perturbed_told_cost(Vector::zeros(), 10_001, apex, p, &mut rng).unwrap()
+        };
+        let (worst, mean) = (told(DrawScore::WorstOf(2)), told(DrawScore::MeanOf(2)));
+        assert!(worst >= mean && mean > 0.0, "worst {worst}, mean {mean}");
+        assert_eq!(DrawScore::WorstOf(3).rollouts(), 3);
+        assert_eq!(DrawScore::One.rollouts(), 1);
+    }
+}
