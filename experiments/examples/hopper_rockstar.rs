@@ -31,8 +31,9 @@
 //! (`all` = the four). Seeds run on the machine's cores (`hopping::map_seeds`); each run is
 //! the same whatever the number of threads.
 //!
-//! ROCK*'s settings are `hopping::noisy_rockstar_config` (σ₀ `SIGMA0`, default 0.1, ξ ≈
-//! ζ^{0.1}) unless `XI`, `LAMBDA` or `TOLERANCE` are set; `RESTART=σ` starts a new search
+//! ROCK*'s settings are [`RockstarConfig::DEFAULT`] (the paper's and the authors' code's;
+//! σ₀ `SIGMA0`, default 0.1) unless `XI` (ξ; `XI=1.0075`, ≈ ζ^{0.1}, is
+//! `hopping::noisy_rockstar_config`), `LAMBDA` or `TOLERANCE` are set; `RESTART=σ` starts a new search
 //! from θ* with that σ₀ whenever one stops with episodes left. `Cmaes<31, 14>`: σ₀
 //! `CMAES_SIGMA0` (default 0.3), no active weights. `CoordinateSearch`: steps a sixth of each
 //! half-range ([`hopping::coordinate_search`]). `DiagonalCem<31, 20, 20>` (PI-BB, h = 10,
@@ -171,7 +172,7 @@ fn learn(opt: &str, seed: u64, budget: u32, perturbation: Perturbation) -> Score
         }),
         "rockstar" => run(&mut |rng, prng| {
             let config = RockstarConfig {
-                xi: Some(env("XI", hopping::NOISY_XI)),
+                xi: std::env::var("XI").ok().map(|v| v.parse().expect("XI")),
                 lambda: env("LAMBDA", RockstarConfig::DEFAULT.lambda),
                 tolerance: env("TOLERANCE", RockstarConfig::DEFAULT.tolerance),
                 ..hopping::rockstar_config(sigma0, budget)
