@@ -13,8 +13,8 @@ use ctrl_adapt::optimizer::Vector;
 use experiments::hopping::{self, P, UNSEEN_COURSES};
 
 fn main() {
-    let theta = hopping::theta_from_env::<f32>()
-        .map_or(Vector::<P>::zeros(), |v| Vector::<P>::from_iterator(v));
+    let theta =
+        hopping::theta_from_env::<f32>().map_or(Vector::<P>::zeros(), Vector::<P>::from_iterator);
     let r = hopping::robustness(theta, hopping::CHECK_DRAWS, 7).expect("episode");
     println!("{}", r.summary());
     for l in &r.legs {
