@@ -60,8 +60,16 @@ pub(crate) struct Gp<const N: usize, const M: usize> {
 /// a_i = ‖o − x_i‖², b_i = dᵀ(o − x_i), so that a point of the line costs O(n) kernel
 /// evaluations instead of O(n·N).
 pub(crate) struct LineTerms<const M: usize> {
-    a: SVector<f32, M>,
-    b: SVector<f32, M>,
+    a: [f32; M],
+    b: [f32; M],
+}
+
+impl<const M: usize> LineTerms<M> {
+    /// All zero, to be filled by [`Gp::line_terms`].
+    pub(crate) const ZERO: Self = Self {
+        a: [0.0; M],
+        b: [0.0; M],
+    };
 }
 
 impl<const N: usize, const M: usize> Gp<N, M> {
@@ -182,32 +190,65 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         prior - a.rows(0, n).dot(&b.rows(0, n))
     }
 
-    /// The [`LineTerms`] of the line through `origin` along the unit vector `direction`.
-    pub(crate) fn line_terms(&self, origin: &Vector<N>, direction: &Vector<N>) -> LineTerms<M> {
-        let mut terms = LineTerms {
-            a: SVector::zeros(),
-            b: SVector::zeros(),
-        };
-        for i in 0..self.len.min(M) {
-            let offset = origin - self.points[i];
-            terms.a[i] = offset.norm_squared();
-            terms.b[i] = direction.dot(&offset);
+    /// Fills `terms` with the [`LineTerms`] of the line through `origin` along the unit
+    /// vector `direction`. Entry by entry into the caller's terms, with no vector
+    /// temporaries: they are on the stack of every posterior pass, which a
+    /// microcontroller's RAM bounds.
+    pub(crate) fn line_terms(
+        &self,
+        origin: &Vector<N>,
+        direction: &Vector<N>,
+        terms: &mut LineTerms<M>,
+    ) {
+        let live = self.len.min(M);
+        for ((point, a), b) in self.points[..live]
+            .iter()
+            .zip(terms.a.iter_mut())
+            .zip(terms.b.iter_mut())
+        {
+            (*a, *b) = (0.0, 0.0);
+            for ((o, x), d) in origin.iter().zip(point.iter()).zip(direction.iter()) {
+                let offset = o - x;
+                *a += offset * offset;
+                *b += d * offset;
+            }
         }
-        terms
     }
 
-    /// k(x_i, o + t d) for the live points, from the line's terms.
+    /// k(x_i, o + t d) for the live points, from the point itself (O(n) per entry; for the
+    /// few columns of the expander test, which need no [`LineTerms`] on the stack).
+    pub(crate) fn column_on_line(
+        &self,
+        origin: &Vector<N>,
+        direction: &Vector<N>,
+        t: f32,
+        kernel: &Kernel,
+    ) -> SVector<f32, M> {
+        let mut k = SVector::<f32, M>::zeros();
+        for (point, k) in self.points[..self.len.min(M)].iter().zip(k.iter_mut()) {
+            let mut d2 = 0.0;
+            for ((o, x), d) in origin.iter().zip(point.iter()).zip(direction.iter()) {
+                let offset = o + t * d - x;
+                d2 += offset * offset;
+            }
+            *k = kernel.at(d2);
+        }
+        k
+    }
+
+    /// Writes k(x_i, o + t d) for the live points into the first entries of `k`, from the
+    /// line's terms (in place: one column's buffer serves the whole grid).
     pub(crate) fn line_column(
         &self,
         terms: &LineTerms<M>,
         t: f32,
         kernel: &Kernel,
-    ) -> SVector<f32, M> {
-        let mut k = SVector::<f32, M>::zeros();
-        for i in 0..self.len.min(M) {
-            k[i] = kernel.at(terms.a[i] + t * (2.0 * terms.b[i] + t));
+        k: &mut SVector<f32, M>,
+    ) {
+        let live = self.len.min(M);
+        for ((k, a), b) in k.iter_mut().zip(&terms.a).zip(&terms.b).take(live) {
+            *k = kernel.at(a + t * (2.0 * b + t));
         }
-        k
     }
 
     /// The checks of a decoded model: the live points inside [−1, 1]ⁿ (with rounding
