@@ -400,19 +400,25 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let mut k = SVector::<f32, M>::zeros();
         for g in 0..GRID {
             self.gp.line_column(&terms, line.t(g), &kernel, &mut k);
-            if variance {
+            let (mean, sd) = if variance {
                 let (mean, variance) = self.gp.posterior(&mut k, &kernel);
-                self.posterior.mean[g] = mean;
-                self.posterior.sd[g] = libm::sqrtf(variance);
+                (mean, Some(libm::sqrtf(variance)))
             } else {
-                self.posterior.mean[g] = self.gp.mean(&k);
+                (self.gp.mean(&k), None)
+            };
+            if let Some(m) = self.posterior.mean.get_mut(g) {
+                *m = mean;
+            }
+            if let (Some(sd), Some(s)) = (sd, self.posterior.sd.get_mut(g)) {
+                *s = sd;
             }
         }
     }
 
-    /// l and u at grid point `g`.
+    /// l and u at grid point `g` (NaN off the grid).
     fn bounds_at(&self, g: usize) -> (f32, f32) {
-        let (mean, sd) = (self.posterior.mean[g], self.posterior.sd[g]);
+        let mean = self.posterior.mean.get(g).copied().unwrap_or(f32::NAN);
+        let sd = self.posterior.sd.get(g).copied().unwrap_or(f32::NAN);
         let half = self.config.beta * sd;
         (mean - half, mean + half)
     }
@@ -472,21 +478,32 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let mut count = 0;
         for g in lo..=hi {
             if self.width(g) > floor && self.bounds_at(g).0 > best_upper {
-                order[count] = g as u8;
-                count += 1;
+                if let Some(slot) = order.get_mut(count) {
+                    *slot = g as u8;
+                    count += 1;
+                }
             }
         }
-        let candidates = &mut order[..count];
-        candidates.sort_unstable_by(|&a, &b| {
-            self.width(usize::from(b))
-                .total_cmp(&self.width(usize::from(a)))
-        });
-        if candidates.is_empty() {
+        // Widest first, ties in grid order: an insertion sort, which (unlike the standard
+        // library's sorts, whose check of the comparison's consistency is a panic path)
+        // cannot panic; at most 64 entries.
+        let wider = |a: u8, b: u8| self.width(usize::from(a)) > self.width(usize::from(b));
+        for i in 1..count {
+            let mut j = i;
+            while j > 0 {
+                match order.get_mut(j - 1..=j) {
+                    Some([a, b]) if wider(*b, *a) => core::mem::swap(a, b),
+                    _ => break,
+                }
+                j -= 1;
+            }
+        }
+        if count == 0 {
             return Some(widest);
         }
         let edges = [lo.checked_sub(1), (hi + 1 < GRID).then_some(hi + 1)]
             .map(|e| e.map(|e| self.edge(line, e)));
-        for &g in candidates.iter() {
+        for &g in order.iter().take(count) {
             if self.expands(line, usize::from(g), &edges, h) {
                 return Some(usize::from(g));
             }
@@ -545,7 +562,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let o = line.origin_index();
         let g = argmin(lo..=hi, |g| {
             // Ties (a flat mean) stay at the origin.
-            let m = self.posterior.mean[g];
+            let m = self.posterior.mean.get(g).copied().unwrap_or(f32::NAN);
             if g == o {
                 m
             } else {

@@ -134,42 +134,60 @@ pub mod long {
     use super::icount::Counter;
     use crate::functions::Ellipsoid;
 
-    /// Builds the optimizer with `build` and measures up to `evaluations` ask/tell pairs of
-    /// it on the `D`-D ellipsoid. Never inlined: the optimizer lives in this frame only (kept
-    /// in its `Result`, lent to [`measure`]), so the peak stack holds one copy of it.
+    /// Which evaluations to measure, and under which names.
+    #[derive(Clone, Copy)]
+    pub struct Plan<'a> {
+        /// The section name of the samples: `footprint: sample {name}_ask = N`.
+        pub name: &'a str,
+        /// Evaluations to run (fewer if the optimizer stops).
+        pub evaluations: u32,
+        /// From this evaluation on (counting from 0), the samples are logged under
+        /// `later` instead of `name`: the steady state of an optimizer whose memory has
+        /// filled (`u32::MAX`: never).
+        pub split: u32,
+        /// The section name after `split`.
+        pub later: &'a str,
+    }
+
+    /// Builds the optimizer with `build` and measures it as `plan` says on the `D`-D
+    /// ellipsoid. Never inlined: the optimizer lives in this frame only (kept in its
+    /// `Result`, lent to [`measure`]), so the peak stack holds one copy of it.
     #[inline(never)]
     pub fn build_and_measure<const D: usize, O: Optimizer<D>>(
         counter: &mut Counter,
-        name: &str,
-        evaluations: u32,
+        plan: Plan<'_>,
         build: fn() -> Result<O, Error>,
     ) -> Result<(), Error> {
         let mut built = build();
         let optimizer = built.as_mut().map_err(|e| *e)?;
-        measure(counter, name, evaluations, optimizer)
+        measure(counter, plan, optimizer)
     }
 
-    /// Runs up to `evaluations` ask/tell pairs of `optimizer` on the `D`-D ellipsoid,
-    /// logging each call's instruction count as `footprint: sample {name}_ask = N` and
-    /// `…_tell`.
+    /// Runs the ask/tell pairs of `plan` of `optimizer` on the `D`-D ellipsoid, logging
+    /// each call's instruction count as `footprint: sample {name}_ask = N` and `…_tell`.
     #[inline(never)]
     pub fn measure<const D: usize, O: Optimizer<D>>(
         counter: &mut Counter,
-        name: &str,
-        evaluations: u32,
+        plan: Plan<'_>,
         optimizer: &mut O,
     ) -> Result<(), Error> {
         let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-        for _ in 0..evaluations {
+        for k in 0..plan.evaluations {
             if optimizer.status() != Status::Running {
                 break;
             }
             let (cost, ask) = ask_and_evaluate(counter, optimizer, &mut rng)?;
             let (told, tell) = counter.measure(|| optimizer.tell(cost));
             told?;
+            let name = if k < plan.split {
+                plan.name
+            } else {
+                plan.later
+            };
             defmt::info!("footprint: sample {=str}_ask = {=u32}", name, ask);
             defmt::info!("footprint: sample {=str}_tell = {=u32}", name, tell);
         }
+        let name = plan.name;
         defmt::info!(
             "footprint: measured {=str} evaluations = {=u32}",
             name,

@@ -85,7 +85,8 @@ fn candidates_in_bounds<const N: usize, O>(
 }
 
 /// The quadratic of LineBO's host tests: minimum 0 at (0.4, −0.3, 0.2, −0.1), curvature
-/// i + 1 along θ_i.
+/// i + 1 along θ_i. (Its tests run on the Cortex-M4F only.)
+#[cfg(target_abi = "eabihf")]
 fn line_bo_quadratic(t: &Vector<4>) -> f32 {
     let c = [0.4, -0.3, 0.2, -0.1];
     (0..4)
@@ -95,6 +96,7 @@ fn line_bo_quadratic(t: &Vector<4>) -> f32 {
 
 /// The settings of LineBO's host tests on [`line_bo_quadratic`]: σ_f² = 4, small noise and
 /// jitter (the cost is exact).
+#[cfg(target_abi = "eabihf")]
 fn line_bo_config(
     threshold: Option<f32>,
     directions: LineDirections,

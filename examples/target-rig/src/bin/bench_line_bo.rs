@@ -12,15 +12,17 @@
 //! the counts come from SysTick under QEMU's `-icount shift=0`
 //! ([`ctrl_adapt_firmware::bench::icount`], exact to ±40 instructions): each `ask` and
 //! `tell` logs `footprint: sample line_bo_ask = N` (…`_tell`, and `line_bo_safe_…` with the
-//! threshold), which `scripts/footprint` turns into the table's statistics. It also prints
-//! the `size_of` of the optimizer and of the AUV adapter around it, and the peak stack.
+//! threshold); from the 65th evaluation on, with the GP full, under `line_bo_full_…` and
+//! `line_bo_safe_full_…`. `scripts/footprint` turns them into the table's statistics. It
+//! also prints the `size_of` of the optimizer and of the AUV adapter around it, and the peak
+//! stack.
 #![no_std]
 #![no_main]
 
 use auv_survey::{self as auv, AuvAdapter};
 use ctrl_adapt::{Error, LineBo, LineBoConfig, Vector};
 use ctrl_adapt_firmware::bench::icount::Counter;
-use ctrl_adapt_firmware::bench::long::build_and_measure;
+use ctrl_adapt_firmware::bench::long::{Plan, build_and_measure};
 use ctrl_adapt_firmware::functions::Ellipsoid;
 use ctrl_adapt_firmware::{exit_failure, exit_success, log_size, stack};
 
@@ -76,8 +78,21 @@ fn main() -> ! {
         let ((), empty) = counter.measure(|| ());
         defmt::info!("footprint: sample empty = {=u32}", empty);
     }
-    let measured = build_and_measure(&mut counter, "line_bo", MEASURED, unthresholded)
-        .and_then(|()| build_and_measure(&mut counter, "line_bo_safe", MEASURED, safe));
+    // From the (M + 1)-th evaluation on the GP is full: every `tell` evicts and refactors.
+    let plan = |name, later| Plan {
+        name,
+        evaluations: MEASURED,
+        split: M as u32,
+        later,
+    };
+    let measured = build_and_measure(&mut counter, plan("line_bo", "line_bo_full"), unthresholded)
+        .and_then(|()| {
+            build_and_measure(
+                &mut counter,
+                plan("line_bo_safe", "line_bo_safe_full"),
+                safe,
+            )
+        });
     if let Err(e) = measured {
         defmt::error!("benchmark failed: {}", e);
         exit_failure()

@@ -17,7 +17,7 @@
 use auv_survey::{self as auv, AuvAdapter};
 use ctrl_adapt::{Bounds, Error, Rockstar, RockstarConfig, Vector};
 use ctrl_adapt_firmware::bench::icount::Counter;
-use ctrl_adapt_firmware::bench::long::build_and_measure;
+use ctrl_adapt_firmware::bench::long::{Plan, build_and_measure};
 use ctrl_adapt_firmware::{exit_failure, exit_success, log_size, stack};
 
 /// The AUV's parameters.
@@ -60,10 +60,14 @@ fn main() -> ! {
         let ((), empty) = counter.measure(|| ());
         defmt::info!("footprint: sample empty = {=u32}", empty);
     }
-    let measured =
-        build_and_measure(&mut counter, "rockstar", MEASURED, auv_rockstar).and_then(|()| {
-            build_and_measure(&mut counter, "rockstar_hopper", MEASURED, hopper_rockstar)
-        });
+    let plan = |name| Plan {
+        name,
+        evaluations: MEASURED,
+        split: u32::MAX,
+        later: name,
+    };
+    let measured = build_and_measure(&mut counter, plan("rockstar"), auv_rockstar)
+        .and_then(|()| build_and_measure(&mut counter, plan("rockstar_hopper"), hopper_rockstar));
     if let Err(e) = measured {
         defmt::error!("benchmark failed: {}", e);
         exit_failure()
