@@ -477,11 +477,12 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let mut order = [0u8; GRID];
         let mut count = 0;
         for g in lo..=hi {
-            if self.width(g) > floor && self.bounds_at(g).0 > best_upper {
-                if let Some(slot) = order.get_mut(count) {
-                    *slot = g as u8;
-                    count += 1;
-                }
+            if self.width(g) > floor
+                && self.bounds_at(g).0 > best_upper
+                && let Some(slot) = order.get_mut(count)
+            {
+                *slot = g as u8;
+                count += 1;
             }
         }
         // Widest first, ties in grid order: an insertion sort, which (unlike the standard
