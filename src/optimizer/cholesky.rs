@@ -5,7 +5,9 @@
 //! Written out rather than taken from nalgebra's decompositions, whose panic sites LLVM does
 //! not always remove (see [`Cmaes`](super::Cmaes)), and because nalgebra's `Cholesky` of
 //! a block of run-time size needs a heap matrix. Every index is below `n.min(M)` by the
-//! loop bounds, so no bounds check can fail.
+//! loop bounds; the loops still read through slices, `get` and iterators, so that no
+//! bounds check is left for the compiler to prove wherever they are inlined (the
+//! firmware's panic-freedom proof).
 
 use nalgebra::{SMatrix, SVector};
 
@@ -17,18 +19,29 @@ use nalgebra::{SMatrix, SVector};
 /// overwritten); with `Some(f)` the pivot is replaced by `f` (the factor of a nearby
 /// positive-definite matrix, as nalgebra's `Cholesky::new_with_substitute`) and the answer
 /// is `false` too, with a complete factor.
+///
+/// On the column-major storage, entry (i, k) at `i + k·M`, read through `get` and
+/// iterators: the loops stay free of bounds checks and panic paths wherever the compiler
+/// inlines them (the firmware's panic-freedom proof), in the same order of operations as
+/// the textbook loops.
 pub(crate) fn cholesky_in_place<const M: usize>(
     m: &mut SMatrix<f32, M, M>,
     n: usize,
     floor: Option<f32>,
 ) -> bool {
     let n = n.min(M);
+    let a = m.as_mut_slice();
     let mut exact = true;
     for j in 0..n {
-        let mut pivot = m[(j, j)];
-        for k in 0..j {
-            pivot -= m[(j, k)] * m[(j, k)];
-        }
+        // Row j left of the diagonal: (j, 0), (j, 1), …, (j, j − 1).
+        let row_j = |a: &[f32]| -> f32 {
+            let mut sum = a.get(j + j * M).copied().unwrap_or(0.0);
+            for v in a.get(j..).unwrap_or(&[]).iter().step_by(M).take(j) {
+                sum -= v * v;
+            }
+            sum
+        };
+        let mut pivot = row_j(a);
         if !(pivot > 0.0 && pivot.is_finite()) {
             exact = false;
             match floor {
@@ -37,47 +50,69 @@ pub(crate) fn cholesky_in_place<const M: usize>(
             }
         }
         let diagonal = libm::sqrtf(pivot);
-        m[(j, j)] = diagonal;
+        if let Some(d) = a.get_mut(j + j * M) {
+            *d = diagonal;
+        }
         for i in j + 1..n {
-            let mut v = m[(i, j)];
-            for k in 0..j {
-                v -= m[(i, k)] * m[(j, k)];
+            let mut v = a.get(i + j * M).copied().unwrap_or(0.0);
+            let row_i = a.get(i..).unwrap_or(&[]).iter().step_by(M);
+            let row_j = a.get(j..).unwrap_or(&[]).iter().step_by(M);
+            for (x, y) in row_i.zip(row_j).take(j) {
+                v -= x * y;
             }
-            m[(i, j)] = v / diagonal;
+            if let Some(e) = a.get_mut(i + j * M) {
+                *e = v / diagonal;
+            }
         }
     }
     exact
 }
 
 /// x ← L⁻¹ x on the first `n` entries, for the lower triangle L of the leading `n × n`
-/// block of `l` (positive diagonal), by forward substitution.
+/// block of `l` (positive diagonal), by forward substitution (row by row, as the textbook
+/// loop; slices and iterators as in [`cholesky_in_place`]).
 pub(crate) fn solve_lower<const M: usize>(
     l: &SMatrix<f32, M, M>,
     x: &mut SVector<f32, M>,
     n: usize,
 ) {
+    let a = l.as_slice();
+    let x = x.as_mut_slice();
     for i in 0..n.min(M) {
-        let mut v = x[i];
-        for k in 0..i {
-            v -= l[(i, k)] * x[k];
+        let Some((solved, rest)) = x.split_at_mut_checked(i) else {
+            return;
+        };
+        let Some(xi) = rest.first_mut() else { return };
+        let mut v = *xi;
+        let row = a.get(i..).unwrap_or(&[]).iter().step_by(M);
+        for (l, x) in row.zip(solved.iter()) {
+            v -= l * x;
         }
-        x[i] = v / l[(i, i)];
+        *xi = v / a.get(i + i * M).copied().unwrap_or(1.0);
     }
 }
 
-/// x ← L⁻ᵀ x on the first `n` entries (as [`solve_lower`], by back substitution).
+/// x ← L⁻ᵀ x on the first `n` entries (as [`solve_lower`], by back substitution: Lᵀ's row
+/// i is L's column i, contiguous).
 pub(crate) fn solve_lower_transposed<const M: usize>(
     l: &SMatrix<f32, M, M>,
     x: &mut SVector<f32, M>,
     n: usize,
 ) {
     let n = n.min(M);
+    let a = l.as_slice();
+    let x = x.as_mut_slice();
     for i in (0..n).rev() {
-        let mut v = x[i];
-        for k in i + 1..n {
-            v -= l[(k, i)] * x[k];
+        let Some((head, solved)) = x.split_at_mut_checked(i + 1) else {
+            return;
+        };
+        let Some(xi) = head.last_mut() else { return };
+        let mut v = *xi;
+        let column = a.get(i * M + i + 1..i * M + n).unwrap_or(&[]);
+        for (l, x) in column.iter().zip(solved.iter()) {
+            v -= l * x;
         }
-        x[i] = v / l[(i, i)];
+        *xi = v / a.get(i + i * M).copied().unwrap_or(1.0);
     }
 }
 

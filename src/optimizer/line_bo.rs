@@ -388,26 +388,37 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     }
 
     /// Recomputes the posterior on the line's grid: the means, and with `variance` the
-    /// standard deviations (one triangular solve per grid point, most of the work).
+    /// standard deviations (one triangular solve per grid point, most of the work). Out of
+    /// line, as [`Self::choose`].
+    #[inline(never)]
     fn refresh(&mut self, variance: bool) {
         let Some(line) = self.line else { return };
         let kernel = self.config.kernel();
-        let terms = self.gp.line_terms(&self.origin, &line.direction);
+        let mut terms = gp::LineTerms::ZERO;
+        self.gp
+            .line_terms(&self.origin, &line.direction, &mut terms);
+        let mut k = SVector::<f32, M>::zeros();
         for g in 0..GRID {
-            let mut k = self.gp.line_column(&terms, line.t(g), &kernel);
-            if variance {
+            self.gp.line_column(&terms, line.t(g), &kernel, &mut k);
+            let (mean, sd) = if variance {
                 let (mean, variance) = self.gp.posterior(&mut k, &kernel);
-                self.posterior.mean[g] = mean;
-                self.posterior.sd[g] = libm::sqrtf(variance);
+                (mean, Some(libm::sqrtf(variance)))
             } else {
-                self.posterior.mean[g] = self.gp.mean(&k);
+                (self.gp.mean(&k), None)
+            };
+            if let Some(m) = self.posterior.mean.get_mut(g) {
+                *m = mean;
+            }
+            if let (Some(sd), Some(s)) = (sd, self.posterior.sd.get_mut(g)) {
+                *s = sd;
             }
         }
     }
 
-    /// l and u at grid point `g`.
+    /// l and u at grid point `g` (NaN off the grid).
     fn bounds_at(&self, g: usize) -> (f32, f32) {
-        let (mean, sd) = (self.posterior.mean[g], self.posterior.sd[g]);
+        let mean = self.posterior.mean.get(g).copied().unwrap_or(f32::NAN);
+        let sd = self.posterior.sd.get(g).copied().unwrap_or(f32::NAN);
         let half = self.config.beta * sd;
         (mean - half, mean + half)
     }
@@ -441,7 +452,9 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     }
 
     /// The grid point of the next episode on the line (module docs, step 3); `None` when
-    /// the safe set is empty.
+    /// the safe set is empty. Out of line, so that its vectors (the edges' L⁻¹k) and those
+    /// of the posterior pass in [`Self::refresh`] never share one stack frame.
+    #[inline(never)]
     fn choose(&self, line: &Line<N>) -> Option<usize> {
         let Some(h) = self.config.threshold else {
             return Some(argmin(0..GRID, |g| self.bounds_at(g).0));
@@ -464,22 +477,34 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let mut order = [0u8; GRID];
         let mut count = 0;
         for g in lo..=hi {
-            if self.width(g) > floor && self.bounds_at(g).0 > best_upper {
-                order[count] = g as u8;
+            if self.width(g) > floor
+                && self.bounds_at(g).0 > best_upper
+                && let Some(slot) = order.get_mut(count)
+            {
+                *slot = g as u8;
                 count += 1;
             }
         }
-        let candidates = &mut order[..count];
-        candidates.sort_unstable_by(|&a, &b| {
-            self.width(usize::from(b))
-                .total_cmp(&self.width(usize::from(a)))
-        });
-        if candidates.is_empty() {
+        // Widest first, ties in grid order: an insertion sort, which (unlike the standard
+        // library's sorts, whose check of the comparison's consistency is a panic path)
+        // cannot panic; at most 64 entries.
+        let wider = |a: u8, b: u8| self.width(usize::from(a)) > self.width(usize::from(b));
+        for i in 1..count {
+            let mut j = i;
+            while j > 0 {
+                match order.get_mut(j - 1..=j) {
+                    Some([a, b]) if wider(*b, *a) => core::mem::swap(a, b),
+                    _ => break,
+                }
+                j -= 1;
+            }
+        }
+        if count == 0 {
             return Some(widest);
         }
         let edges = [lo.checked_sub(1), (hi + 1 < GRID).then_some(hi + 1)]
             .map(|e| e.map(|e| self.edge(line, e)));
-        for &g in candidates.iter() {
+        for &g in order.iter().take(count) {
             if self.expands(line, usize::from(g), &edges, h) {
                 return Some(usize::from(g));
             }
@@ -491,11 +516,13 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     /// bound of one of the unsafe `edges` to ≤ h.
     fn expands(&self, line: &Line<N>, g: usize, edges: &[Option<Edge<M>>; 2], h: f32) -> bool {
         let kernel = self.config.kernel();
-        let Some(first) = edges.iter().flatten().next() else {
+        if edges.iter().all(Option::is_none) {
             return false;
-        };
+        }
         let (tg, (lower_g, _)) = (line.t(g), self.bounds_at(g));
-        let mut vg = self.gp.line_column(&first.terms, tg, &kernel);
+        let mut vg = self
+            .gp
+            .column_on_line(&self.origin, &line.direction, tg, &kernel);
         let (mean_g, var_g) = self.gp.posterior(&mut vg, &kernel);
         edges.iter().flatten().any(|e| {
             let dt = tg - e.t;
@@ -510,16 +537,16 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     /// The posterior at the unsafe grid point `e` next to the safe set, for [`Self::expands`].
     fn edge(&self, line: &Line<N>, e: usize) -> Edge<M> {
         let kernel = self.config.kernel();
-        let terms = self.gp.line_terms(&self.origin, &line.direction);
         let t = line.t(e);
-        let mut white = self.gp.line_column(&terms, t, &kernel);
+        let mut white = self
+            .gp
+            .column_on_line(&self.origin, &line.direction, t, &kernel);
         let (mean, variance) = self.gp.posterior(&mut white, &kernel);
         Edge {
             t,
             mean,
             variance,
             white,
-            terms,
         }
     }
 
@@ -536,7 +563,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let o = line.origin_index();
         let g = argmin(lo..=hi, |g| {
             // Ties (a flat mean) stay at the origin.
-            let m = self.posterior.mean[g];
+            let m = self.posterior.mean.get(g).copied().unwrap_or(f32::NAN);
             if g == o {
                 m
             } else {
@@ -560,9 +587,11 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         x.map(|v| v.clamp(-1.0, 1.0))
     }
 
-    /// The upper confidence bound u = μ + βσ of the GP at θ (for tests and diagnostics).
-    #[cfg(test)]
-    fn upper_bound(&self, theta: &Vector<N>) -> f32 {
+    /// The upper confidence bound u(θ) = μ(θ) + βσ(θ) of the latent cost at θ under the
+    /// current GP: with a threshold h, every candidate the search proposes after θ⁰ has
+    /// u ≤ h when it is proposed (up to rounding), or is θ⁰ itself. For diagnostics and
+    /// tests; O(M²) work.
+    pub fn upper_bound(&self, theta: &Vector<N>) -> f32 {
         let kernel = self.config.kernel();
         let mut k = self.gp.kernel_column(&self.unit.unit_of(theta), &kernel);
         let (mean, var) = self.gp.posterior(&mut k, &kernel);
@@ -570,14 +599,13 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     }
 }
 
-/// An unsafe grid point next to the safe set: its t, posterior mean and variance, L⁻¹k,
-/// and the line's kernel terms (shared by the expander tests).
+/// An unsafe grid point next to the safe set: its t, posterior mean and variance, and L⁻¹k
+/// (shared by the expander tests).
 struct Edge<const M: usize> {
     t: f32,
     mean: f32,
     variance: f32,
     white: SVector<f32, M>,
-    terms: gp::LineTerms<M>,
 }
 
 /// The index of `values` where `key` is lowest (NaN never wins; the first on ties), or 0.

@@ -13,7 +13,7 @@
 //!   ([`DT`]), 240-tick episodes ([`TICKS`]); these are the documented nominal values of
 //!   `docs/plants.md`.
 //! * The learners: [`coordinate_search`] (initial step 0.25, tolerance 1e-3: the paper's local
-//!   phase), and the build options [`sracos`] and [`cem`].
+//!   phase), and the build options [`sracos`], [`cem`] and [`line_bo`].
 //! * [`AuvLearner`]: the [`Adapter`] behind the PIL [`Session`](pil_link::Session),
 //!   implementing [`pil_link::Learner`].
 //!
@@ -41,7 +41,7 @@ use ctrl_adapt::controller::{
 use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::optimizer::{
     CemConfig, ControlledRandomSearch, CoordinateConfig, CoordinateSearch, CrsConfig, DiagonalCem,
-    Optimizer, Sracos, SracosConfig, Weighting,
+    LineBo, LineBoConfig, Optimizer, Sracos, SracosConfig, Weighting,
 };
 use ctrl_adapt::{Bounds, Error, Vector};
 use rand_core::{RngCore, SeedableRng};
@@ -95,6 +95,13 @@ pub type AuvAdapter<O> = Adapter<O, AuvController, SurveyCost, P, S, A>;
 
 /// The [`cem`] build option's optimizer.
 pub type AuvCem = DiagonalCem<P, CEM_SAMPLES, CEM_ELITE>;
+
+/// Episodes the [`line_bo`] build option's Gaussian process remembers: 64, the recommended
+/// capacity at 18 parameters (its state is about 23 KB).
+pub const LINE_BO_MEMORY: usize = 64;
+
+/// The [`line_bo`] build option's optimizer.
+pub type AuvLineBo = LineBo<P, LINE_BO_MEMORY>;
 
 /// The paper's global-phase optimizer (for the footprint; not a PIL build option: its
 /// 100 points of 18 floats are 7.6 KB).
@@ -182,6 +189,30 @@ pub fn cem(max_evaluations: u32) -> Result<AuvCem, Error> {
             max_variance: 0.5 * 0.5,
             max_evaluations,
             ..CemConfig::DEFAULT
+        },
+    )
+}
+
+/// The bare controller's cost on the AUV survey, about: 3.1 to 3.4 over the plant's seeds
+/// (the LineBO experiments' `auv` trial). [`line_bo`] sets its GP's scale from it.
+pub const BARE_COST: f32 = 3.2;
+
+/// LineBO without a threshold over the AUV box from W = 0, with the settings of the host
+/// experiments (LineBO's rule: σ_f = the bare controller's cost, σ_n = 5 % of it; ℓ = 0.15
+/// of the box, β = 2, coordinate lines of one episode each), remembering
+/// [`LINE_BO_MEMORY`] episodes, at most `max_evaluations` episodes.
+pub fn line_bo(max_evaluations: u32) -> Result<AuvLineBo, Error> {
+    let noise = 0.05 * BARE_COST;
+    LineBo::try_new(
+        bounds()?,
+        Vector::zeros(),
+        LineBoConfig {
+            signal_variance: BARE_COST * BARE_COST,
+            noise_variance: noise * noise,
+            length_scale: 0.15,
+            evaluations_per_line: 1,
+            max_evaluations,
+            ..LineBoConfig::DEFAULT
         },
     )
 }

@@ -123,6 +123,93 @@ pub mod icount {
     }
 }
 
+/// Instruction counts of optimizers whose calls are too long to trace (ROCK*, LineBO),
+/// from [`icount::Counter`]: each `ask` and `tell` logs `footprint: sample {name}_ask = N`
+/// (and `…_tell`), which `scripts/footprint` turns into the table's statistics.
+pub mod long {
+    use ctrl_adapt::{Error, Optimizer, Status, Vector};
+    use rand_core::SeedableRng;
+    use rand_xoshiro::Xoshiro128PlusPlus;
+
+    use super::icount::Counter;
+    use crate::functions::Ellipsoid;
+
+    /// Which evaluations to measure, and under which names.
+    #[derive(Clone, Copy)]
+    pub struct Plan<'a> {
+        /// The section name of the samples: `footprint: sample {name}_ask = N`.
+        pub name: &'a str,
+        /// Evaluations to run (fewer if the optimizer stops).
+        pub evaluations: u32,
+        /// From this evaluation on (counting from 0), the samples are logged under
+        /// `later` instead of `name`: the steady state of an optimizer whose memory has
+        /// filled (`u32::MAX`: never).
+        pub split: u32,
+        /// The section name after `split`.
+        pub later: &'a str,
+    }
+
+    /// Builds the optimizer with `build` and measures it as `plan` says on the `D`-D
+    /// ellipsoid. Never inlined: the optimizer lives in this frame only (kept in its
+    /// `Result`, lent to [`measure`]), so the peak stack holds one copy of it.
+    #[inline(never)]
+    pub fn build_and_measure<const D: usize, O: Optimizer<D>>(
+        counter: &mut Counter,
+        plan: Plan<'_>,
+        build: fn() -> Result<O, Error>,
+    ) -> Result<(), Error> {
+        let mut built = build();
+        let optimizer = built.as_mut().map_err(|e| *e)?;
+        measure(counter, plan, optimizer)
+    }
+
+    /// Runs the ask/tell pairs of `plan` of `optimizer` on the `D`-D ellipsoid, logging
+    /// each call's instruction count as `footprint: sample {name}_ask = N` and `…_tell`.
+    #[inline(never)]
+    pub fn measure<const D: usize, O: Optimizer<D>>(
+        counter: &mut Counter,
+        plan: Plan<'_>,
+        optimizer: &mut O,
+    ) -> Result<(), Error> {
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
+        for k in 0..plan.evaluations {
+            if optimizer.status() != Status::Running {
+                break;
+            }
+            let (cost, ask) = ask_and_evaluate(counter, optimizer, &mut rng)?;
+            let (told, tell) = counter.measure(|| optimizer.tell(cost));
+            told?;
+            let name = if k < plan.split {
+                plan.name
+            } else {
+                plan.later
+            };
+            defmt::info!("footprint: sample {=str}_ask = {=u32}", name, ask);
+            defmt::info!("footprint: sample {=str}_tell = {=u32}", name, tell);
+        }
+        let name = plan.name;
+        defmt::info!(
+            "footprint: measured {=str} evaluations = {=u32}",
+            name,
+            optimizer.evaluations()
+        );
+        Ok(())
+    }
+
+    /// One measured `ask` and the cost of its candidate on the `D`-D ellipsoid, with the
+    /// `ask`'s instruction count. Out of line, and the ellipsoid (8n bytes) made here each
+    /// time: neither it nor the candidate is in the frame that waits on `tell`.
+    #[inline(never)]
+    fn ask_and_evaluate<const D: usize, O: Optimizer<D>>(
+        counter: &mut Counter,
+        optimizer: &mut O,
+        rng: &mut Xoshiro128PlusPlus,
+    ) -> Result<(f32, u32), Error> {
+        let (theta, ask): (Result<Vector<D>, Error>, u32) = counter.measure(|| optimizer.ask(rng));
+        Ok((Ellipsoid::<D>::new().eval(&theta?), ask))
+    }
+}
+
 /// Logs `footprint: size_of NAME = N` for the type `$t`.
 #[macro_export]
 macro_rules! log_size {

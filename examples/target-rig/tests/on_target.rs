@@ -3,9 +3,9 @@
 //!
 //! These mirror the host unit and property tests of `src/optimizer.rs`,
 //! `src/optimizer/coordinate.rs`, the controller layer (the policy's envelope, the adapter's
-//! fallbacks) and SRACOS / the diagonal CEM / ROCK* (the proptest properties become loops over seeded
+//! fallbacks) and SRACOS / the diagonal CEM / ROCK* / LineBO (the proptest properties become loops over seeded
 //! random cases, as proptest needs std), so target-specific numerics are covered: f32
-//! rounding at the box faces, NaN handling, libm's `powf`, `logf`, `cosf` and `sqrtf`.
+//! rounding at the box faces, NaN handling, libm's `powf`, `logf`, `cosf`, `expf` and `sqrtf`.
 #![no_std]
 #![no_main]
 
@@ -15,9 +15,9 @@ use auv_survey as auv;
 use ctrl_adapt::controller::{Controller, Mode};
 use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{
-    Bounds, CemConfig, CoordinateConfig, CoordinateSearch, DiagonalCem, Error, Optimizer,
-    Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression, Vector,
-    Weighting,
+    Bounds, CemConfig, CoordinateConfig, CoordinateSearch, DiagonalCem, Error, LineBo,
+    LineBoConfig, LineDirections, Optimizer, Replacement, Rockstar, RockstarConfig, Sracos,
+    SracosConfig, Status, Suppression, Vector, Weighting,
 };
 use ctrl_adapt_firmware::functions::{ellipsoid, ellipsoid_minimiser};
 use rand_core::{RngCore, SeedableRng};
@@ -81,6 +81,35 @@ fn candidates_in_bounds<const N: usize, O>(
         let now = optimizer.best().map_or(f32::INFINITY, |b| b.cost);
         defmt::assert!(now <= best);
         best = now;
+    }
+}
+
+/// The quadratic of LineBO's host tests: minimum 0 at (0.4, −0.3, 0.2, −0.1), curvature
+/// i + 1 along θ_i. (Its tests run on the Cortex-M4F only.)
+#[cfg(target_abi = "eabihf")]
+fn line_bo_quadratic(t: &Vector<4>) -> f32 {
+    let c = [0.4, -0.3, 0.2, -0.1];
+    (0..4)
+        .map(|i| (i as f32 + 1.0) * (t[i] - c[i]) * (t[i] - c[i]))
+        .sum()
+}
+
+/// The settings of LineBO's host tests on [`line_bo_quadratic`]: σ_f² = 4, small noise and
+/// jitter (the cost is exact).
+#[cfg(target_abi = "eabihf")]
+fn line_bo_config(
+    threshold: Option<f32>,
+    directions: LineDirections,
+    max_evaluations: u32,
+) -> LineBoConfig {
+    LineBoConfig {
+        signal_variance: 4.0,
+        noise_variance: 1e-4,
+        jitter: 1e-6,
+        threshold,
+        directions,
+        max_evaluations,
+        ..LineBoConfig::DEFAULT
     }
 }
 
@@ -632,6 +661,106 @@ mod tests {
         )
         .unwrap();
         candidates_in_bounds::<18, _>(rock, &mut r, 300);
+    }
+
+    /// LineBO (`LineBo<3, 8>`: the GP full and evicting after 8 episodes) over 16 seeded
+    /// random boxes (widths 1e-3..1e3), starts and settings (length scale, signal variance,
+    /// coordinate or random lines, 1 to 5 episodes per line, with and without a threshold),
+    /// with NaN/inf/extreme costs: every candidate inside the box, a non-finite cost rejected
+    /// with the whole state unchanged, the best never increasing, at most 8 episodes
+    /// remembered.
+    #[test]
+    fn line_bo_candidates_stay_in_bounds_and_bad_costs_change_nothing() {
+        let mut r = rng(41);
+        for _ in 0..16 {
+            let lower = Vector::<3>::from_fn(|_, _| uniform(&mut r, -1e3, 1e3));
+            let upper = Vector::<3>::from_fn(|i, _| {
+                lower[i] + libm::powf(10.0, uniform(&mut r, -3.0, 3.0))
+            });
+            let bounds = Bounds::try_new(lower, upper).unwrap();
+            let config = LineBoConfig {
+                length_scale: libm::powf(10.0, uniform(&mut r, -3.0, 1.0)),
+                signal_variance: libm::powf(10.0, uniform(&mut r, -6.0, 6.0)),
+                directions: if r.next_u32() % 2 == 0 {
+                    LineDirections::Coordinate
+                } else {
+                    LineDirections::Random
+                },
+                evaluations_per_line: 1 + r.next_u32() % 5,
+                threshold: (r.next_u32() % 2 == 0).then(|| uniform(&mut r, -1e3, 1e3)),
+                ..LineBoConfig::DEFAULT
+            };
+            let start = bounds.sample_uniform(&mut r);
+            let search = LineBo::<3, 8>::try_new(bounds, start, config).unwrap();
+            candidates_in_bounds::<3, _>(search, &mut r, 40);
+            let mut search = search;
+            for _ in 0..20 {
+                let Ok(_) = search.ask(&mut r) else { break };
+                search.tell(uniform(&mut r, -1e3, 1e3)).unwrap();
+            }
+            assert!(search.remembered() <= 8);
+        }
+    }
+
+    /// LineBO learns the 4-D quadratic of its host tests (`LineBo<4, 64>`, σ_f² = 4): from
+    /// the corner (−1, …, −1) (cost 10.5) it reaches a cost below 10⁻² within 60 episodes
+    /// with coordinate lines, and below 5·10⁻² within 100 with random lines; three seeds
+    /// each, as on the host. Cortex-M4F only: the state (about 17 KB) exceeds the
+    /// micro:bit's 16 KiB of RAM.
+    #[cfg(target_abi = "eabihf")]
+    #[test]
+    fn line_bo_learns_a_quadratic() {
+        let b = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
+        for (directions, budget, target) in [
+            (LineDirections::Coordinate, 60, 1e-2),
+            (LineDirections::Random, 100, 5e-2),
+        ] {
+            for seed in 0..3 {
+                let config = line_bo_config(None, directions, budget);
+                let mut s = LineBo::<4, 64>::try_new(b, Vector::repeat(-1.0), config).unwrap();
+                let mut r = rng(seed);
+                while let Ok(t) = s.ask(&mut r) {
+                    s.tell(line_bo_quadratic(&t)).unwrap();
+                }
+                let best = s.best().unwrap().cost;
+                assert!(best < target, "seed {}: best {}", seed, best);
+            }
+        }
+    }
+
+    /// LineBO with the threshold h = J(θ⁰) + 0.5 on the same quadratic (a well-specified
+    /// model), as the host tests check it: every candidate other than θ⁰ has an upper
+    /// confidence bound ≤ h when it is proposed (the library's own `upper_bound`, with 10⁻⁴
+    /// (1 + |h|) of slack for rounding; `ask` does not change the GP), no episode's cost
+    /// exceeds h, and the search still learns (coordinate lines below 2·10⁻², random lines
+    /// below 1) within 60 episodes; three seeds each. Cortex-M4F only (the state's size).
+    #[cfg(target_abi = "eabihf")]
+    #[test]
+    fn line_bo_safe_variant_stays_below_the_threshold() {
+        let b = Bounds::<4>::uniform(-1.0, 1.0).unwrap();
+        let start = Vector::from([-0.5, 0.5, -0.5, 0.5]);
+        let h = line_bo_quadratic(&start) + 0.5;
+        for (directions, target) in [
+            (LineDirections::Coordinate, 2e-2),
+            (LineDirections::Random, 1.0),
+        ] {
+            for seed in 0..3 {
+                let config = line_bo_config(Some(h), directions, 60);
+                let mut s = LineBo::<4, 64>::try_new(b, start, config).unwrap();
+                let mut r = rng(seed);
+                while let Ok(t) = s.ask(&mut r) {
+                    if t != start {
+                        let u = s.upper_bound(&t);
+                        assert!(u <= h + 1e-4 * (1.0 + h.abs()), "u = {} > h = {}", u, h);
+                    }
+                    let cost = line_bo_quadratic(&t);
+                    assert!(cost <= h, "seed {}: cost {} > h = {}", seed, cost, h);
+                    s.tell(cost).unwrap();
+                }
+                let best = s.best().unwrap().cost;
+                assert!(best < target, "seed {}: best {}", seed, best);
+            }
+        }
     }
 
     /// `stack::measure` (the paint and scan of `scripts/sizes`) counts a call's frame: a call

@@ -5,7 +5,7 @@
 //!
 //! ```sh
 //! (cd examples/target-rig && cargo build --release)
-//! cargo run --release -p host-tests --bin pil -- [--optimizer coordinate|sracos|cem]
+//! cargo run --release -p host-tests --bin pil -- [--optimizer coordinate|sracos|cem|linebo]
 //!     [--elf PATH] [--episodes N] [--ticks K] [--no-faults] [--no-learning-check]
 //!     [--firmware-log PATH]
 //! ```
@@ -13,7 +13,7 @@
 //! The run: one episode of the bare PD on the target (`Nominal`), N learning episodes
 //! (default 150, the paper's local phase), one episode of the best θ found (`Deploy`), in the
 //! paper's "real" 0.6 m/s current without noise (so a run is exactly repeatable). The
-//! firmware binary must match `--optimizer` (`pil`, `pil_sracos`, `pil_cem`; the default ELF
+//! firmware binary must match `--optimizer` (`pil`, `pil_sracos`, `pil_cem`, `pil_line_bo`; the default ELF
 //! follows the option); a mismatch shows as a failed comparison with the reference.
 //!
 //! Exits non-zero unless (1) the firmware exits cleanly, (2) every injected fault (a
@@ -53,6 +53,7 @@ enum Firmware {
     Coordinate,
     Sracos,
     Cem,
+    LineBo,
 }
 
 impl Firmware {
@@ -62,6 +63,7 @@ impl Firmware {
             Self::Coordinate => auv::coordinate_search(u32::MAX)?.into(),
             Self::Sracos => auv::sracos(u32::MAX)?.into(),
             Self::Cem => auv::cem(u32::MAX)?.into(),
+            Self::LineBo => auv::line_bo(u32::MAX)?.into(),
         })
     }
 
@@ -71,6 +73,7 @@ impl Firmware {
             Self::Coordinate => "pil",
             Self::Sracos => "pil_sracos",
             Self::Cem => "pil_cem",
+            Self::LineBo => "pil_line_bo",
         }
     }
 
@@ -79,6 +82,9 @@ impl Firmware {
             Self::Coordinate => "CoordinateSearch<18> (step 0.25, tolerance 1e-3)",
             Self::Sracos => "Sracos<18> (ZOOpt defaults)",
             Self::Cem => "DiagonalCem<18, 10, 5> (CMA-ES weights, sigma0 0.25)",
+            Self::LineBo => {
+                "LineBo<18, 64> (sigma_f = the bare cost, length scale 0.15, no threshold)"
+            }
         }
     }
 }
@@ -126,6 +132,7 @@ fn parse_args() -> Result<Args, String> {
                     "coordinate" => Firmware::Coordinate,
                     "sracos" => Firmware::Sracos,
                     "cem" => Firmware::Cem,
+                    "linebo" => Firmware::LineBo,
                     other => return Err(format!("unknown optimizer {other}")),
                 }
             }

@@ -60,8 +60,16 @@ pub(crate) struct Gp<const N: usize, const M: usize> {
 /// a_i = ‖o − x_i‖², b_i = dᵀ(o − x_i), so that a point of the line costs O(n) kernel
 /// evaluations instead of O(n·N).
 pub(crate) struct LineTerms<const M: usize> {
-    a: SVector<f32, M>,
-    b: SVector<f32, M>,
+    a: [f32; M],
+    b: [f32; M],
+}
+
+impl<const M: usize> LineTerms<M> {
+    /// All zero, to be filled by [`Gp::line_terms`].
+    pub(crate) const ZERO: Self = Self {
+        a: [0.0; M],
+        b: [0.0; M],
+    };
 }
 
 impl<const N: usize, const M: usize> Gp<N, M> {
@@ -90,7 +98,9 @@ impl<const N: usize, const M: usize> Gp<N, M> {
     pub(crate) fn append(&mut self, x: &Vector<N>, y: f32, kernel: &Kernel, around: &Vector<N>) {
         let prior = *self.prior.get_or_insert(y);
         let limit = RESIDUAL_LIMIT * libm::sqrtf(kernel.signal);
-        let residual = (y - prior).clamp(-limit, limit);
+        // max/min rather than `f32::clamp`, whose check of its bounds is a panic path; the
+        // same value for the limit, positive by the configuration's validation.
+        let residual = (y - prior).max(-limit).min(limit);
         let n = self.len.min(M);
         if n == M {
             let farthest = (0..n)
@@ -111,15 +121,20 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         }
         let mut row = self.kernel_column(x, kernel);
         solve_lower(&self.factor, &mut row, n);
-        let pivot = kernel.signal + kernel.noise - row.rows(0, n).norm_squared();
-        self.points[n] = *x;
-        self.residuals[n] = residual;
+        let pivot = kernel.signal + kernel.noise - dot(live(&row, n), live(&row, n));
+        if let (Some(p), Some(r)) = (self.points.get_mut(n), self.residuals.get_mut(n)) {
+            *p = *x;
+            *r = residual;
+        }
         self.len = n + 1;
         if pivot >= 0.5 * kernel.noise && pivot.is_finite() {
-            for k in 0..n {
-                self.factor[(n, k)] = row[k];
+            // Row n of L: L⁻¹k left of the diagonal, the pivot's root on it.
+            let entries = row.iter().take(n).copied().chain([libm::sqrtf(pivot)]);
+            for (k, value) in entries.enumerate() {
+                if let Some(f) = self.factor.get_mut((n, k)) {
+                    *f = value;
+                }
             }
-            self.factor[(n, n)] = libm::sqrtf(pivot);
             self.update_weights();
         } else {
             self.refactor(kernel);
@@ -129,10 +144,12 @@ impl<const N: usize, const M: usize> Gp<N, M> {
     /// L and α from scratch, pivots below the noise floored to it.
     pub(crate) fn refactor(&mut self, kernel: &Kernel) {
         let n = self.len.min(M);
-        for j in 0..n {
-            for i in j..n {
-                let d2 = (self.points[i] - self.points[j]).norm_squared();
-                self.factor[(i, j)] = kernel.at(d2) + if i == j { kernel.noise } else { 0.0 };
+        for (j, pj) in self.points.iter().enumerate().take(n) {
+            for (i, pi) in self.points.iter().enumerate().take(n).skip(j) {
+                let d2 = (pi - pj).norm_squared();
+                if let Some(f) = self.factor.get_mut((i, j)) {
+                    *f = kernel.at(d2) + if i == j { kernel.noise } else { 0.0 };
+                }
             }
         }
         cholesky_in_place(&mut self.factor, n, Some(kernel.noise));
@@ -153,8 +170,8 @@ impl<const N: usize, const M: usize> Gp<N, M> {
     /// k(x_i, x) for the live points, 0 beyond.
     pub(crate) fn kernel_column(&self, x: &Vector<N>, kernel: &Kernel) -> SVector<f32, M> {
         let mut k = SVector::<f32, M>::zeros();
-        for i in 0..self.len.min(M) {
-            k[i] = kernel.at(self.distance2(i, x));
+        for (k, p) in k.iter_mut().zip(&self.points).take(self.len.min(M)) {
+            *k = kernel.at((p - x).norm_squared());
         }
         k
     }
@@ -162,7 +179,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
     /// The posterior mean of the latent cost at the point whose kernel column is `k`.
     pub(crate) fn mean(&self, k: &SVector<f32, M>) -> f32 {
         let n = self.len.min(M);
-        self.prior() + k.rows(0, n).dot(&self.weights.rows(0, n))
+        self.prior() + dot(live(k, n), live(&self.weights, n))
     }
 
     /// The posterior mean and variance of the latent cost at the point whose kernel
@@ -171,7 +188,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         let n = self.len.min(M);
         let mean = self.mean(k);
         solve_lower(&self.factor, k, n);
-        let variance = (kernel.signal - k.rows(0, n).norm_squared()).max(0.0);
+        let variance = (kernel.signal - dot(live(k, n), live(k, n))).max(0.0);
         (mean, variance)
     }
 
@@ -179,35 +196,69 @@ impl<const N: usize, const M: usize> Gp<N, M> {
     /// their whitened columns L⁻¹k (from [`Gp::posterior`]).
     pub(crate) fn covariance(&self, prior: f32, a: &SVector<f32, M>, b: &SVector<f32, M>) -> f32 {
         let n = self.len.min(M);
-        prior - a.rows(0, n).dot(&b.rows(0, n))
+        prior - dot(live(a, n), live(b, n))
     }
 
-    /// The [`LineTerms`] of the line through `origin` along the unit vector `direction`.
-    pub(crate) fn line_terms(&self, origin: &Vector<N>, direction: &Vector<N>) -> LineTerms<M> {
-        let mut terms = LineTerms {
-            a: SVector::zeros(),
-            b: SVector::zeros(),
-        };
-        for i in 0..self.len.min(M) {
-            let offset = origin - self.points[i];
-            terms.a[i] = offset.norm_squared();
-            terms.b[i] = direction.dot(&offset);
+    /// Fills `terms` with the [`LineTerms`] of the line through `origin` along the unit
+    /// vector `direction`. Entry by entry into the caller's terms, with no vector
+    /// temporaries: they are on the stack of every posterior pass, which a
+    /// microcontroller's RAM bounds.
+    pub(crate) fn line_terms(
+        &self,
+        origin: &Vector<N>,
+        direction: &Vector<N>,
+        terms: &mut LineTerms<M>,
+    ) {
+        for ((point, a), b) in self
+            .points
+            .iter()
+            .zip(terms.a.iter_mut())
+            .zip(terms.b.iter_mut())
+            .take(self.len.min(M))
+        {
+            (*a, *b) = (0.0, 0.0);
+            for ((o, x), d) in origin.iter().zip(point.iter()).zip(direction.iter()) {
+                let offset = o - x;
+                *a += offset * offset;
+                *b += d * offset;
+            }
         }
-        terms
     }
 
-    /// k(x_i, o + t d) for the live points, from the line's terms.
+    /// k(x_i, o + t d) for the live points, from the point itself (O(n) per entry; for the
+    /// few columns of the expander test, which need no [`LineTerms`] on the stack).
+    pub(crate) fn column_on_line(
+        &self,
+        origin: &Vector<N>,
+        direction: &Vector<N>,
+        t: f32,
+        kernel: &Kernel,
+    ) -> SVector<f32, M> {
+        let mut k = SVector::<f32, M>::zeros();
+        for (point, k) in self.points.iter().zip(k.iter_mut()).take(self.len.min(M)) {
+            let mut d2 = 0.0;
+            for ((o, x), d) in origin.iter().zip(point.iter()).zip(direction.iter()) {
+                let offset = o + t * d - x;
+                d2 += offset * offset;
+            }
+            *k = kernel.at(d2);
+        }
+        k
+    }
+
+    /// Writes k(x_i, o + t d) for the live points into the first entries of `k`, from the
+    /// line's terms (in place: one column's buffer serves the whole grid).
     pub(crate) fn line_column(
         &self,
         terms: &LineTerms<M>,
         t: f32,
         kernel: &Kernel,
-    ) -> SVector<f32, M> {
-        let mut k = SVector::<f32, M>::zeros();
-        for i in 0..self.len.min(M) {
-            k[i] = kernel.at(terms.a[i] + t * (2.0 * terms.b[i] + t));
+        k: &mut SVector<f32, M>,
+    ) {
+        let live = self.len.min(M);
+        for ((k, a), b) in k.iter_mut().zip(&terms.a).zip(&terms.b).take(live) {
+            *k = kernel.at(a + t * (2.0 * b + t));
         }
-        k
     }
 
     /// The checks of a decoded model: the live points inside [−1, 1]ⁿ (with rounding
@@ -229,6 +280,38 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         require_finite(self.factor.iter(), "factor")?;
         require((0..n).all(|i| self.factor[(i, i)] > 0.0), "factor")
     }
+}
+
+/// The first `n` entries of `v` (all of them if `n` is larger).
+fn live<const M: usize>(v: &SVector<f32, M>, n: usize) -> &[f32] {
+    let all = v.as_slice();
+    all.get(..n).unwrap_or(all)
+}
+
+/// aᵀb over the shorter of the two, summed in the order of nalgebra's `dot` for vectors of
+/// run-time length (eight interleaved partial sums, then the rest), so that the results
+/// are bit-identical to `rows(0, n).dot(..)`; written out because that `dot` asserts the
+/// shapes match, a panic path the compiler keeps where it does not inline the call.
+fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0.0f32; 8];
+    let (chunks_a, chunks_b) = (a.chunks_exact(8), b.chunks_exact(8));
+    // Slices of one length (always the case here) leave remainders of one length.
+    let (rest_a, rest_b) = (chunks_a.remainder(), chunks_b.remainder());
+    for (x, y) in chunks_a.zip(chunks_b) {
+        for ((acc, x), y) in acc.iter_mut().zip(x).zip(y) {
+            *acc += x * y;
+        }
+    }
+    let [a0, a1, a2, a3, a4, a5, a6, a7] = acc;
+    let mut sum = 0.0;
+    sum += a0 + a4;
+    sum += a1 + a5;
+    sum += a2 + a6;
+    sum += a3 + a7;
+    for (x, y) in rest_a.iter().zip(rest_b) {
+        sum += x * y;
+    }
+    sum
 }
 
 #[cfg(test)]

@@ -15,12 +15,10 @@
 #![no_main]
 
 use auv_survey::{self as auv, AuvAdapter};
-use ctrl_adapt::{Bounds, Error, Optimizer, Rockstar, RockstarConfig, Status, Vector};
+use ctrl_adapt::{Bounds, Error, Rockstar, RockstarConfig, Vector};
 use ctrl_adapt_firmware::bench::icount::Counter;
-use ctrl_adapt_firmware::functions::Ellipsoid;
+use ctrl_adapt_firmware::bench::long::{Plan, build_and_measure};
 use ctrl_adapt_firmware::{exit_failure, exit_success, log_size, stack};
-use rand_core::SeedableRng;
-use rand_xoshiro::Xoshiro128PlusPlus;
 
 /// The AUV's parameters.
 const N: usize = auv::P;
@@ -30,73 +28,19 @@ const N_HOPPER: usize = 31;
 /// the memory full and evicting, and several refactorings of the covariance (every n).
 pub const MEASURED: u32 = 200;
 
-/// Builds `Rockstar<D, M>` with the defaults over the box `bounds` gives, from 0, and
-/// measures it. Never inlined: the optimizer lives in this frame only (kept in its
-/// `Result`, lent to [`measure`]), so the peak stack holds one copy of it.
+/// `Rockstar<18, 90>` with the defaults over the AUV box, from 0. Out of line: its
+/// temporaries (the box, the configuration) are not in the frame that holds the optimizer
+/// while it runs; the optimizer itself is written into the caller's `Result`.
 #[inline(never)]
-fn build_and_measure<const D: usize, const M: usize>(
-    counter: &mut Counter,
-    name: &str,
-    bounds: fn() -> Result<Bounds<D>, Error>,
-) -> Result<(), Error> {
-    let mut built = build::<D, M>(bounds);
-    let rock = built.as_mut().map_err(|e| *e)?;
-    measure(counter, name, rock)
+fn auv_rockstar() -> Result<Rockstar<N, 90>, Error> {
+    Rockstar::try_new(auv::bounds()?, Vector::zeros(), RockstarConfig::DEFAULT)
 }
 
-/// The construction, out of line: its temporaries (the box, the configuration) are not in
-/// the frame that holds the optimizer while it runs; the optimizer itself is written into
-/// the caller's `Result`.
+/// `Rockstar<31, 155>` with the defaults over the hopping leg's box [−1, 1]ⁿ, from 0.
 #[inline(never)]
-fn build<const D: usize, const M: usize>(
-    bounds: fn() -> Result<Bounds<D>, Error>,
-) -> Result<Rockstar<D, M>, Error> {
-    bounds().and_then(|b| Rockstar::try_new(b, Vector::zeros(), RockstarConfig::DEFAULT))
-}
-
-/// The hopping leg's box, [−1, 1]ⁿ.
-fn unit_box() -> Result<Bounds<N_HOPPER>, Error> {
-    Bounds::uniform(-1.0, 1.0)
-}
-
-/// Runs `MEASURED` ask/tell pairs of `rock` on the `D`-D ellipsoid, logging each call's
-/// instruction count as `footprint: sample {name}_ask = N` and `…_tell`.
-#[inline(never)]
-fn measure<const D: usize, const M: usize>(
-    counter: &mut Counter,
-    name: &str,
-    rock: &mut Rockstar<D, M>,
-) -> Result<(), Error> {
-    let mut rng = Xoshiro128PlusPlus::seed_from_u64(1);
-    for _ in 0..MEASURED {
-        if rock.status() != Status::Running {
-            break;
-        }
-        let (cost, ask) = ask_and_evaluate(counter, rock, &mut rng)?;
-        let (told, tell) = counter.measure(|| rock.tell(cost));
-        told?;
-        defmt::info!("footprint: sample {=str}_ask = {=u32}", name, ask);
-        defmt::info!("footprint: sample {=str}_tell = {=u32}", name, tell);
-    }
-    defmt::info!(
-        "footprint: measured {=str} evaluations = {=u32}",
-        name,
-        rock.evaluations()
-    );
-    Ok(())
-}
-
-/// One measured `ask` and the cost of its candidate on the `D`-D ellipsoid, with the
-/// `ask`'s instruction count. Out of line, and the ellipsoid (8n bytes) made here each
-/// time: neither it nor the candidate is in the frame that waits on `tell`.
-#[inline(never)]
-fn ask_and_evaluate<const D: usize, const M: usize>(
-    counter: &mut Counter,
-    rock: &mut Rockstar<D, M>,
-    rng: &mut Xoshiro128PlusPlus,
-) -> Result<(f32, u32), Error> {
-    let (theta, ask) = counter.measure(|| rock.ask(rng));
-    Ok((Ellipsoid::<D>::new().eval(&theta?), ask))
+fn hopper_rockstar() -> Result<Rockstar<N_HOPPER, 155>, Error> {
+    let bounds = Bounds::uniform(-1.0, 1.0)?;
+    Rockstar::try_new(bounds, Vector::zeros(), RockstarConfig::DEFAULT)
 }
 
 /// The stack ROCK* may take beyond its own state (the rule every optimizer follows).
@@ -116,10 +60,14 @@ fn main() -> ! {
         let ((), empty) = counter.measure(|| ());
         defmt::info!("footprint: sample empty = {=u32}", empty);
     }
-    let measured =
-        build_and_measure::<N, 90>(&mut counter, "rockstar", auv::bounds).and_then(|()| {
-            build_and_measure::<N_HOPPER, 155>(&mut counter, "rockstar_hopper", unit_box)
-        });
+    let plan = |name| Plan {
+        name,
+        evaluations: MEASURED,
+        split: u32::MAX,
+        later: name,
+    };
+    let measured = build_and_measure(&mut counter, plan("rockstar"), auv_rockstar)
+        .and_then(|()| build_and_measure(&mut counter, plan("rockstar_hopper"), hopper_rockstar));
     if let Err(e) = measured {
         defmt::error!("benchmark failed: {}", e);
         exit_failure()

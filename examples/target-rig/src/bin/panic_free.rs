@@ -5,7 +5,9 @@
 //!   constructors), `Sracos` (every replacement strategy, with and without value
 //!   suppression), `Racos`, `DiagonalCem` (every weighting, fixed and adapted covariance),
 //!   `ControlledRandomSearch`, `TwoPhase`, `Rockstar` (memory 90 = 5n), `Cmaes` (λ = 12,
-//!   active weights, a decomposition every generation); and `Bounds`,
+//!   active weights, a decomposition every generation), `LineBo` (64 episodes remembered,
+//!   with and without a threshold, coordinate and random lines, run past its capacity so
+//!   the eviction runs); and `Bounds`,
 //!   `unit_f32`, `normal_pair_f32`;
 //! * the controller layer: `Pd` (output, update, limits), `LinearPolicy`, `CorrectedPd`, and
 //!   the AUV `Adapter`'s whole API (`begin_episode`, `control` on finite and non-finite
@@ -13,7 +15,7 @@
 //!   the survey reward;
 //! * the PIL firmware's path: frame decoding of arbitrary bytes, frame encoding, reading and
 //!   writing over an embedded-io port, the session and the AUV learner (`AuvLearner` with
-//!   `CoordinateSearch<18>` and with `Sracos<18>`),
+//!   `CoordinateSearch<18>`, with `Sracos<18>` and with `LineBo<18, 64>`),
 //!
 //! so that every panic path inside them stays in the binary if it exists.
 //!
@@ -33,8 +35,9 @@ use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
     Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Optimizer, Racos, Replacement, Rockstar,
-    RockstarConfig, Sracos, SracosConfig, Status, Suppression, TwoPhase, Vector, Weighting,
+    CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, LineDirections, Optimizer,
+    Racos, Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression,
+    TwoPhase, Vector, Weighting,
 };
 use ctrl_adapt_firmware::{exit_failure, exit_success};
 use pil_link::{
@@ -241,6 +244,7 @@ fn other_optimizers(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
     }
     told += rockstar(rng, bounds);
     told += cmaes(rng, bounds);
+    told += line_bo(rng, bounds);
     black_box(normal_pair_f32(rng));
     told
 }
@@ -264,6 +268,41 @@ fn cmaes(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
     black_box((c.mean(), c.normalised_mean(), c.sigma(), c.covariance()));
     black_box((c.axis_ratio(), c.parents(), c.generations()));
     black_box((c.told_in_generation(), c.recoveries(), c.config()));
+    told
+}
+
+/// LineBO remembering 64 episodes (the recommendation at n = 18), with and without a
+/// threshold, along coordinate and random lines, with configurations the compiler cannot
+/// see, for 100 episodes each (past the GP's capacity: the eviction and refactorisation
+/// run), and its accessors.
+fn line_bo(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
+    let mut told = 0;
+    for (threshold, directions) in [
+        (None, LineDirections::Coordinate),
+        (None, LineDirections::Random),
+        (Some(black_box(50.0)), LineDirections::Coordinate),
+        (Some(black_box(50.0)), LineDirections::Random),
+    ] {
+        let config = LineBoConfig {
+            length_scale: black_box(0.15),
+            signal_variance: black_box(100.0),
+            noise_variance: black_box(1.0),
+            jitter: black_box(1e-4),
+            beta: black_box(2.0),
+            directions: black_box(directions),
+            evaluations_per_line: black_box(3),
+            threshold: black_box(threshold),
+            max_evaluations: black_box(100),
+        };
+        let start = bounds.sample_uniform(rng);
+        let Ok(mut l) = LineBo::<N, 64>::try_new(bounds, start, config) else {
+            exit_failure()
+        };
+        told += drive(&mut l, rng, u32::MAX);
+        let probe = Vector::<N>::from_fn(|_, _| black_box(f32::from_bits(rng.next_u32())));
+        black_box((l.upper_bound(&probe), l.upper_bound(&start)));
+        black_box((l.remembered(), l.config()));
+    }
     told
 }
 
@@ -399,18 +438,22 @@ fn controller_layer(rng: &mut Rng) -> bool {
 
 /// The PIL firmware's path: random episodes of valid frames interleaved with arbitrary
 /// bytes, through the reader, the session, the AUV learner and a byte-slice port, with
-/// `CoordinateSearch<18>` (the `pil` firmware) and `Sracos<18>` (`pil_sracos`).
+/// `CoordinateSearch<18>` (the `pil` firmware), `Sracos<18>` (`pil_sracos`) and
+/// `LineBo<18, 64>` (`pil_line_bo`).
 fn pil_session(rng: &mut Rng) -> bool {
     let coordinate = auv::coordinate_search(black_box(u32::MAX))
         .and_then(|o| AuvLearner::try_new(o, black_box(u32::MAX), auv::SEED));
     let sracos = auv::sracos(black_box(u32::MAX))
         .and_then(|o| AuvLearner::try_new(o, black_box(u32::MAX), auv::SEED));
-    let (Ok(coordinate), Ok(sracos)) = (coordinate, sracos) else {
+    let line_bo = auv::line_bo(black_box(u32::MAX))
+        .and_then(|o| AuvLearner::try_new(o, black_box(u32::MAX), auv::SEED));
+    let (Ok(coordinate), Ok(sracos), Ok(line_bo)) = (coordinate, sracos, line_bo) else {
         return false;
     };
     let a = session(rng, coordinate);
     let b = session(rng, sracos);
-    a && b
+    let c = session(rng, line_bo);
+    a && b && c
 }
 
 #[inline(never)]

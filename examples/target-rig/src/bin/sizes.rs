@@ -23,15 +23,17 @@
 //!
 //! The configurations are those of the footprint benchmark (`bench`), at N: CMA-ES with the
 //! tutorial's default population 4 + ⌊3 ln N⌋, CRS with the paper's 100 points (2(N + 1)
-//! from N = 99 on), the diagonal CEM with 10 samples and 5 elites, ROCK* with M = 5N.
+//! from N = 99 on), the diagonal CEM with 10 samples and 5 elites, ROCK* with M = 5N,
+//! LineBO (its defaults: no threshold, three episodes per coordinate line) remembering
+//! [`LINE_BO_M`] episodes, for M + 8 evaluations.
 #![no_std]
 #![no_main]
 
 use ctrl_adapt::optimizer::cmaes::default_population;
 use ctrl_adapt::{
     Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, Error, Optimizer, Rockstar, RockstarConfig, Sracos,
-    SracosConfig, Status, Vector, Weighting,
+    CoordinateSearch, CrsConfig, DiagonalCem, Error, LineBo, LineBoConfig, Optimizer, Rockstar,
+    RockstarConfig, Sracos, SracosConfig, Status, Vector, Weighting,
 };
 use ctrl_adapt_firmware::functions::Ellipsoid;
 use ctrl_adapt_firmware::{exit_failure, exit_success, stack};
@@ -51,6 +53,9 @@ const CEM_K: usize = 10;
 const CEM_E: usize = 5;
 /// ROCK*'s memory: the recommended 5N rollouts.
 const ROCKSTAR_M: usize = 5 * N;
+/// The episodes LineBO's GP remembers: the recommended 64 up to N = 18, 48 beyond (the
+/// docs' figure at N = 31).
+const LINE_BO_M: usize = if N <= 18 { 64 } else { 48 };
 /// Evaluations per optimizer: through every phase of their state machines, as in `bench`
 /// (CRS's 100 initial points and 300 trials, 40 CEM updates, a CMA-ES generation and its
 /// decomposition many times over).
@@ -58,6 +63,9 @@ const EVALUATIONS: u32 = 400;
 /// ROCK*'s evaluations: its memory filled and then evicting for N more (each `tell` is
 /// millions of instructions at N = 31).
 const EVALUATIONS_ROCKSTAR: u32 = (ROCKSTAR_M + N) as u32;
+/// LineBO's evaluations: its GP filled and then evicting for 8 more (each call is millions
+/// of instructions).
+const EVALUATIONS_LINE_BO: u32 = (LINE_BO_M + 8) as u32;
 
 /// Optimizers not to run (their names, separated by commas): `CTRL_ADAPT_SKIP` at build time.
 /// `scripts/sizes` sets it for those whose stack overflowed the RAM in a run before.
@@ -226,6 +234,14 @@ optimizer!(
     Rockstar::try_new(unit_box()?, Vector::zeros(), RockstarConfig::DEFAULT)
 );
 
+optimizer!(
+    build_line_bo,
+    run_line_bo,
+    LineBo<N, LINE_BO_M>,
+    EVALUATIONS_LINE_BO,
+    LineBo::try_new(unit_box()?, Vector::zeros(), LineBoConfig::DEFAULT)
+);
+
 /// Builds the optimizer in this frame and runs it: the stack of a firmware that keeps it on
 /// the stack.
 #[inline(never)]
@@ -305,7 +321,8 @@ fn main() -> ! {
         .and_then(|()| report("DiagonalCem", &[N, CEM_K, CEM_E], build_cem, run_cem))
         .and_then(|()| report("ControlledRandomSearch", &[N, CRS_M], build_crs, run_crs))
         .and_then(|()| report("Cmaes", &[N, CMAES_L], build_cmaes, run_cmaes))
-        .and_then(|()| report("Rockstar", &[N, ROCKSTAR_M], build_rockstar, run_rockstar));
+        .and_then(|()| report("Rockstar", &[N, ROCKSTAR_M], build_rockstar, run_rockstar))
+        .and_then(|()| report("LineBo", &[N, LINE_BO_M], build_line_bo, run_line_bo));
     if let Err(e) = measured {
         defmt::error!("sizes failed: {}", e);
         exit_failure()
