@@ -1,0 +1,119 @@
+"""The optimizers of the ctrl-adapt firmware library, bit for bit, from Python.
+
+Each :class:`Optimizer` *is* the Rust type the firmware runs (``opt.rust_type`` names it):
+for the same seed, configuration and costs it proposes the same candidates, and its
+:meth:`Optimizer.save` record is the one the firmware loads with
+``ctrl_adapt::record::load``. Use it for the global phase in a simulator, then hand the
+record to the board.
+
+>>> import numpy as np, ctrl_adapt
+>>> opt = ctrl_adapt.Optimizer("coordinate", lower=-np.ones(2), upper=np.ones(2),
+...                            start=np.zeros(2), seed=1, initial_step=0.5)
+>>> for _ in range(40):
+...     theta = opt.ask()
+...     opt.tell(float(np.sum((theta - 0.25) ** 2)))
+>>> theta, cost = opt.best()
+>>> bool(cost < 1e-3)
+True
+"""
+
+import json as _json
+
+import numpy as _np
+
+from ._native import FORMAT_VERSION, MAX_DIMENSION, OptimizerError, RecordError
+from ._native import Optimizer as _Native
+from ._native import algorithms, rust_type
+
+__all__ = [
+    "Optimizer",
+    "OptimizerError",
+    "RecordError",
+    "algorithms",
+    "rust_type",
+    "MAX_DIMENSION",
+    "FORMAT_VERSION",
+]
+
+
+def _vector(values, name):
+    if values is None:
+        return None
+    array = _np.ascontiguousarray(values, dtype=_np.float64).reshape(-1)
+    return array
+
+
+class Optimizer:
+    """One of the library's optimizers (``algorithms()`` lists the names) over the box
+    ``[lower, upper]`` (1 to ``MAX_DIMENSION`` parameters).
+
+    ``start`` is θ⁰ for the algorithms that start from one (default: the box's centre);
+    ``seed`` seeds the optimizer's own xoshiro128++ RNG, as ``Xoshiro128PlusPlus::
+    seed_from_u64`` does in Rust. Keyword arguments set fields of the algorithm's Rust
+    configuration (e.g. ``CoordinateConfig``'s ``initial_step``, ``max_evaluations``);
+    for ``"two-phase"``: ``global_budget``, ``global`` (a dict of ``CrsConfig`` fields) and
+    ``local`` (a dict of ``CoordinateConfig`` fields). An unknown field, a value out of its
+    range or a non-finite cost raises :class:`OptimizerError` with the library's message.
+    """
+
+    __slots__ = ("_native", "ask", "tell", "best", "pending")
+
+    def __init__(self, algorithm, lower, upper, start=None, *, seed=0, **config):
+        native = _Native(
+            algorithm,
+            _vector(lower, "lower"),
+            _vector(upper, "upper"),
+            _vector(start, "start"),
+            int(seed),
+            _json.dumps(config),
+        )
+        self._bind(native)
+
+    def _bind(self, native):
+        self._native = native
+        # The native methods themselves: no Python frame per call.
+        self.ask = native.ask
+        self.tell = native.tell
+        self.best = native.best
+        self.pending = native.pending
+
+    @classmethod
+    def load(cls, record, seed=0):
+        """The optimizer a record holds (saved from Python or from firmware), with a new
+        RNG seeded by ``seed``."""
+        self = cls.__new__(cls)
+        self._bind(_Native.load(bytes(record), int(seed)))
+        return self
+
+    def save(self):
+        """The state as a record of :attr:`rust_type` (bytes; the RNG is not in it)."""
+        return self._native.save()
+
+    def copy(self):
+        """A copy in the same state, RNG included."""
+        other = type(self).__new__(type(self))
+        other._bind(self._native.copy())
+        return other
+
+    @property
+    def algorithm(self):
+        return self._native.algorithm
+
+    @property
+    def dimension(self):
+        return self._native.dimension
+
+    @property
+    def rust_type(self):
+        return self._native.rust_type
+
+    @property
+    def evaluations(self):
+        return self._native.evaluations
+
+    @property
+    def status(self):
+        return self._native.status
+
+    def __repr__(self):
+        return repr(self._native)

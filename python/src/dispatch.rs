@@ -1,0 +1,448 @@
+//! The library's const-generic optimizers reached at a dimension chosen at run time.
+//!
+//! Python cannot name `CoordinateSearch<18>`: the dimension arrives as a number. Every
+//! algorithm is therefore compiled once per dimension from 1 to [`MAX_DIMENSION`], and
+//! [`build`] picks the instance (a `match` over the dimension, written out by a macro). The
+//! object behind the [`Dynamic`] trait *is* the firmware's type, so for the same seed,
+//! configuration and costs it proposes the same candidates bit for bit, and its record is
+//! the record the firmware type loads ([`Dynamic::save`], [`load`]).
+//!
+//! The sizes other than the dimension are fixed per algorithm, at the library's
+//! recommendations ([`rust_type`] names the exact type, for the firmware to declare):
+//!
+//! | name | Rust type at dimension n |
+//! | --- | --- |
+//! | `coordinate` | `CoordinateSearch<n>` |
+//! | `sracos` | `Sracos<n>` (ZOOpt's default set sizes) |
+//! | `cem` | `DiagonalCem<n, 10, 5>` |
+//! | `crs` | `ControlledRandomSearch<n, {10(n + 1)}>` (Price's set size) |
+//! | `two-phase` | `TwoPhase<ControlledRandomSearch<n, {10(n + 1)}>, n>` |
+//! | `cmaes` | `Cmaes<n, λ>`, λ = 4 + ⌊3 ln n⌋ ([`default_population`]) |
+//! | `rockstar` | `Rockstar<n, {5n}>` (its recommended memory) |
+//! | `linebo` | `LineBo<n, 64>` |
+
+use ctrl_adapt::optimizer::cmaes::default_population;
+use ctrl_adapt::optimizer::{
+    Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
+    CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, Optimizer, Rockstar,
+    RockstarConfig, Sracos, SracosConfig, Status, TwoPhase,
+};
+use ctrl_adapt::record::{self, Persistent, RecordError};
+use ctrl_adapt::{Bounds, Error, Vector};
+use rand_xoshiro::Xoshiro128PlusPlus;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+/// The largest dimension compiled in.
+pub const MAX_DIMENSION: usize = 64;
+
+/// The CEM's samples per update and elites.
+pub const CEM_SAMPLES: usize = 10;
+/// The CEM's elites per update.
+pub const CEM_ELITES: usize = 5;
+/// The episodes LineBO's Gaussian process remembers.
+pub const LINE_BO_MEMORY: usize = 64;
+
+/// The algorithms, by the names Python uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Algorithm {
+    /// `CoordinateSearch`.
+    Coordinate,
+    /// `Sracos`.
+    Sracos,
+    /// `DiagonalCem`.
+    Cem,
+    /// `ControlledRandomSearch`.
+    Crs,
+    /// `TwoPhase` over a controlled random search.
+    TwoPhase,
+    /// `Cmaes`.
+    Cmaes,
+    /// `Rockstar`.
+    Rockstar,
+    /// `LineBo`.
+    LineBo,
+}
+
+impl Algorithm {
+    /// Every algorithm, in the order of the module table.
+    pub const ALL: [Self; 8] = [
+        Self::Coordinate,
+        Self::Sracos,
+        Self::Cem,
+        Self::Crs,
+        Self::TwoPhase,
+        Self::Cmaes,
+        Self::Rockstar,
+        Self::LineBo,
+    ];
+
+    /// The name Python uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Coordinate => "coordinate",
+            Self::Sracos => "sracos",
+            Self::Cem => "cem",
+            Self::Crs => "crs",
+            Self::TwoPhase => "two-phase",
+            Self::Cmaes => "cmaes",
+            Self::Rockstar => "rockstar",
+            Self::LineBo => "linebo",
+        }
+    }
+
+    /// The algorithm called `name`.
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|a| a.name() == name)
+    }
+
+    /// Whether it starts from a given θ (the others sample the box first).
+    pub fn takes_start(self) -> bool {
+        !matches!(self, Self::Sracos | Self::Crs | Self::TwoPhase)
+    }
+}
+
+/// The exact Rust type of `algorithm` at dimension `n` (module table).
+pub fn rust_type(algorithm: Algorithm, n: usize) -> String {
+    let crs = format!("ControlledRandomSearch<{n}, {}>", 10 * (n + 1));
+    match algorithm {
+        Algorithm::Coordinate => format!("CoordinateSearch<{n}>"),
+        Algorithm::Sracos => format!("Sracos<{n}>"),
+        Algorithm::Cem => format!("DiagonalCem<{n}, {CEM_SAMPLES}, {CEM_ELITES}>"),
+        Algorithm::Crs => crs,
+        Algorithm::TwoPhase => format!("TwoPhase<{crs}, {n}>"),
+        Algorithm::Cmaes => match compiled_population(n) {
+            Some(lambda) => format!("Cmaes<{n}, {lambda}>"),
+            None => format!("Cmaes<{n}, {}>", default_population(n)),
+        },
+        Algorithm::Rockstar => format!("Rockstar<{n}, {}>", 5 * n),
+        Algorithm::LineBo => format!("LineBo<{n}, {LINE_BO_MEMORY}>"),
+    }
+}
+
+/// Why an optimizer could not be built.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BuildError {
+    /// The library refused a value (its message names the field).
+    Library(Error),
+    /// The dimension is outside 1..=[`MAX_DIMENSION`], or the vectors disagree with it.
+    Dimension(String),
+    /// The configuration does not decode (an unknown field, a wrong type).
+    Config(String),
+}
+
+impl core::fmt::Display for BuildError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Library(e) => write!(f, "{e}"),
+            Self::Dimension(s) | Self::Config(s) => f.write_str(s),
+        }
+    }
+}
+
+impl From<Error> for BuildError {
+    fn from(e: Error) -> Self {
+        Self::Library(e)
+    }
+}
+
+/// What to build: the algorithm, the box, the start (for the algorithms that take one;
+/// the box's centre when `None`) and the configuration as a JSON object whose fields
+/// override the algorithm's `DEFAULT` configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Spec<'a> {
+    /// The algorithm.
+    pub algorithm: Algorithm,
+    /// Lower bounds, one per parameter.
+    pub lower: &'a [f32],
+    /// Upper bounds, one per parameter.
+    pub upper: &'a [f32],
+    /// θ⁰.
+    pub start: Option<&'a [f32]>,
+    /// The configuration's fields to change, a JSON object (`{}` for the defaults). For
+    /// `two-phase`: `{"global": {CrsConfig fields}, "global_budget": 150, "local":
+    /// {CoordinateConfig fields}}`.
+    pub config: &'a str,
+}
+
+/// An optimizer of any algorithm and dimension, with the calls Python needs. Costs and
+/// candidates are the library's `f32`.
+pub trait Dynamic: Send + Sync {
+    /// The dimension n.
+    fn dimension(&self) -> usize;
+    /// The next candidate.
+    fn ask(&mut self, rng: &mut Xoshiro128PlusPlus) -> Result<Vec<f32>, Error>;
+    /// The pending candidate's cost.
+    fn tell(&mut self, cost: f32) -> Result<(), Error>;
+    /// The best candidate told so far and its cost.
+    fn best(&self) -> Option<(Vec<f32>, f32)>;
+    /// The candidate asked and not yet told.
+    fn pending(&self) -> Option<Vec<f32>>;
+    /// Costs told so far.
+    fn evaluations(&self) -> u32;
+    /// Running, converged or out of budget.
+    fn status(&self) -> Status;
+    /// The state as a record of its Rust type ([`ctrl_adapt::record`]).
+    fn save(&self) -> Result<Vec<u8>, RecordError>;
+    /// Another object in the same state.
+    fn boxed_clone(&self) -> Box<dyn Dynamic>;
+}
+
+/// An optimizer of dimension `N` behind [`Dynamic`].
+#[derive(Clone)]
+struct Held<O, const N: usize>(O);
+
+impl<O, const N: usize> Dynamic for Held<O, N>
+where
+    O: Optimizer<N> + Persistent + Clone + Send + Sync + 'static,
+{
+    fn dimension(&self) -> usize {
+        N
+    }
+
+    fn ask(&mut self, rng: &mut Xoshiro128PlusPlus) -> Result<Vec<f32>, Error> {
+        self.0.ask(rng).map(|theta| theta.as_slice().to_vec())
+    }
+
+    fn tell(&mut self, cost: f32) -> Result<(), Error> {
+        self.0.tell(cost)
+    }
+
+    fn best(&self) -> Option<(Vec<f32>, f32)> {
+        self.0
+            .best()
+            .map(|Best { theta, cost }| (theta.as_slice().to_vec(), cost))
+    }
+
+    fn pending(&self) -> Option<Vec<f32>> {
+        self.0.pending().map(|theta| theta.as_slice().to_vec())
+    }
+
+    fn evaluations(&self) -> u32 {
+        self.0.evaluations()
+    }
+
+    fn status(&self) -> Status {
+        self.0.status()
+    }
+
+    fn save(&self) -> Result<Vec<u8>, RecordError> {
+        // The record is at most the postcard encoding (never longer than the in-memory
+        // size for these types, plus varint slack) and a header: grow until it fits.
+        let mut room = core::mem::size_of::<O>() * 2 + 256;
+        loop {
+            let mut buf = vec![0u8; room];
+            match record::save(&self.0, &mut buf) {
+                Ok(bytes) => return Ok(bytes.to_vec()),
+                Err(RecordError::BufferTooSmall) if room < (1 << 26) => room *= 2,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    fn boxed_clone(&self) -> Box<dyn Dynamic> {
+        Box::new(self.clone())
+    }
+}
+
+/// `default` with the fields of the JSON object `json` put over it.
+fn configured<C: Serialize + DeserializeOwned>(default: C, json: &str) -> Result<C, BuildError> {
+    let bad = |e: serde_json::Error| BuildError::Config(format!("configuration: {e}"));
+    let mut value = serde_json::to_value(default).map_err(bad)?;
+    let given: serde_json::Value = serde_json::from_str(json).map_err(bad)?;
+    let (Some(fields), serde_json::Value::Object(given)) = (value.as_object_mut(), given) else {
+        return Err(BuildError::Config(
+            "configuration: expected an object of field names and values".into(),
+        ));
+    };
+    for (key, v) in given {
+        let Some(slot) = fields.get_mut(&key) else {
+            let mut known: Vec<&str> = fields.keys().map(String::as_str).collect();
+            known.sort_unstable();
+            return Err(BuildError::Config(format!(
+                "configuration: unknown field `{key}` (fields: {})",
+                known.join(", ")
+            )));
+        };
+        *slot = v;
+    }
+    serde_json::from_value(value).map_err(bad)
+}
+
+/// The `two-phase` configuration: `{"global", "global_budget", "local"}`.
+fn two_phase_config(json: &str) -> Result<(CrsConfig, u32, CoordinateConfig), BuildError> {
+    #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct TwoPhaseJson {
+        #[serde(default)]
+        global: Option<serde_json::Value>,
+        global_budget: Option<u32>,
+        #[serde(default)]
+        local: Option<serde_json::Value>,
+    }
+    let parsed: TwoPhaseJson = serde_json::from_str(json)
+        .map_err(|e| BuildError::Config(format!("configuration: {e}")))?;
+    let part = |v: Option<serde_json::Value>| v.map_or_else(|| "{}".to_string(), |v| v.to_string());
+    Ok((
+        configured(CrsConfig::DEFAULT, &part(parsed.global))?,
+        parsed.global_budget.unwrap_or(150),
+        configured(CoordinateConfig::DEFAULT, &part(parsed.local))?,
+    ))
+}
+
+fn vector<const N: usize>(values: &[f32], name: &str) -> Result<Vector<N>, BuildError> {
+    if values.len() != N {
+        return Err(BuildError::Dimension(format!(
+            "{name} has {} values, the bounds {N}",
+            values.len()
+        )));
+    }
+    Ok(Vector::from_column_slice(values))
+}
+
+fn held<O, const N: usize>(o: O) -> Box<dyn Dynamic>
+where
+    O: Optimizer<N> + Persistent + Clone + Send + Sync + 'static,
+{
+    Box::new(Held::<O, N>(o))
+}
+
+/// Builds `spec` at dimension `N`; `CRS` = 10(N + 1), `LAMBDA` = the CMA-ES population,
+/// `MEMORY` = 5N (ROCK*'s rollouts).
+fn build_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>(
+    spec: &Spec<'_>,
+) -> Result<Box<dyn Dynamic>, BuildError> {
+    let bounds = Bounds::<N>::try_new(vector(spec.lower, "lower")?, vector(spec.upper, "upper")?)?;
+    let start = match spec.start {
+        Some(start) => vector::<N>(start, "start")?,
+        None => (bounds.lower() + bounds.upper()) * 0.5,
+    };
+    if spec.start.is_some() && !spec.algorithm.takes_start() {
+        return Err(BuildError::Config(format!(
+            "{} samples the box first and takes no start",
+            spec.algorithm.name()
+        )));
+    }
+    let json = spec.config;
+    Ok(match spec.algorithm {
+        Algorithm::Coordinate => held(CoordinateSearch::<N>::try_new(
+            bounds,
+            start,
+            configured(CoordinateConfig::DEFAULT, json)?,
+        )?),
+        Algorithm::Sracos => held(Sracos::<N>::try_new(
+            bounds,
+            configured(SracosConfig::DEFAULT, json)?,
+        )?),
+        Algorithm::Cem => held(DiagonalCem::<N, CEM_SAMPLES, CEM_ELITES>::try_new(
+            bounds,
+            start,
+            configured(CemConfig::DEFAULT, json)?,
+        )?),
+        Algorithm::Crs => held(ControlledRandomSearch::<N, CRS>::try_new(
+            bounds,
+            configured(CrsConfig::DEFAULT, json)?,
+        )?),
+        Algorithm::TwoPhase => {
+            let (global, budget, local) = two_phase_config(json)?;
+            let crs = ControlledRandomSearch::<N, CRS>::try_new(bounds, global)?;
+            held(TwoPhase::try_new(crs, budget, local)?)
+        }
+        Algorithm::Cmaes => held(Cmaes::<N, LAMBDA>::try_new(
+            bounds,
+            start,
+            configured(CmaesConfig::DEFAULT, json)?,
+        )?),
+        Algorithm::Rockstar => held(Rockstar::<N, MEMORY>::try_new(
+            bounds,
+            start,
+            configured(RockstarConfig::DEFAULT, json)?,
+        )?),
+        Algorithm::LineBo => held(LineBo::<N, LINE_BO_MEMORY>::try_new(
+            bounds,
+            start,
+            configured(LineBoConfig::DEFAULT, json)?,
+        )?),
+    })
+}
+
+/// Loads a record of `algorithm` at dimension `N` (same sizes as [`build_at`]).
+fn load_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>(
+    algorithm: Algorithm,
+    bytes: &[u8],
+) -> Result<Box<dyn Dynamic>, RecordError> {
+    Ok(match algorithm {
+        Algorithm::Coordinate => held(record::load::<CoordinateSearch<N>>(bytes)?),
+        Algorithm::Sracos => held(record::load::<Sracos<N>>(bytes)?),
+        Algorithm::Cem => held(record::load::<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>>(
+            bytes,
+        )?),
+        Algorithm::Crs => held(record::load::<ControlledRandomSearch<N, CRS>>(bytes)?),
+        Algorithm::TwoPhase => held(record::load::<TwoPhase<ControlledRandomSearch<N, CRS>, N>>(
+            bytes,
+        )?),
+        Algorithm::Cmaes => held(record::load::<Cmaes<N, LAMBDA>>(bytes)?),
+        Algorithm::Rockstar => held(record::load::<Rockstar<N, MEMORY>>(bytes)?),
+        Algorithm::LineBo => held(record::load::<LineBo<N, LINE_BO_MEMORY>>(bytes)?),
+    })
+}
+
+/// Calls `$apply!(n, crs, lambda, memory)`-style arms for every compiled dimension: the
+/// arguments of [`build_at`] and [`load_at`]. λ = 4 + ⌊3 ln n⌋ is written out (const
+/// generics cannot call a function of n on stable Rust); the package's tests check it
+/// against the rule.
+macro_rules! every_dimension {
+    ($n:expr, $f:ident, $($arg:expr),*) => {
+        every_dimension!(@arms $n, $f, ($($arg),*);
+            1 4, 2 6, 3 7, 4 8, 5 8, 6 9, 7 9, 8 10, 9 10, 10 10, 11 11, 12 11, 13 11, 14 11,
+            15 12, 16 12, 17 12, 18 12, 19 12, 20 12, 21 13, 22 13, 23 13, 24 13, 25 13, 26 13,
+            27 13, 28 13, 29 14, 30 14, 31 14, 32 14, 33 14, 34 14, 35 14, 36 14, 37 14, 38 14,
+            39 14, 40 15, 41 15, 42 15, 43 15, 44 15, 45 15, 46 15, 47 15, 48 15, 49 15, 50 15,
+            51 15, 52 15, 53 15, 54 15, 55 16, 56 16, 57 16, 58 16, 59 16, 60 16, 61 16, 62 16,
+            63 16, 64 16)
+    };
+    (@arms $n:expr, $f:ident, $args:tt; $($dim:literal $lambda:literal),+) => {
+        match $n {
+            $($dim => every_dimension!(@call $f, $dim, $lambda, $args),)+
+            _ => None,
+        }
+    };
+    (@call $f:ident, $dim:literal, $lambda:literal, ($($arg:expr),*)) => {
+        Some($f::<$dim, { 10 * ($dim + 1) }, $lambda, { 5 * $dim }>($($arg),*))
+    };
+}
+
+/// The CMA-ES population compiled in at dimension `n` (the table of [`every_dimension`];
+/// the package's tests check it against the library's rule).
+fn compiled_population(n: usize) -> Option<usize> {
+    fn population<const N: usize, const C: usize, const L: usize, const M: usize>() -> usize {
+        L
+    }
+    every_dimension!(n, population,)
+}
+
+/// Builds `spec` at the dimension of its bounds.
+pub fn build(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
+    let n = spec.lower.len();
+    every_dimension!(n, build_at, spec).unwrap_or_else(|| {
+        Err(BuildError::Dimension(format!(
+            "{n} parameters: the package is compiled for 1 to {MAX_DIMENSION}"
+        )))
+    })
+}
+
+/// Loads a record of any compiled algorithm and dimension: the one whose type the record
+/// names (its shape), with its algorithm.
+pub fn load(bytes: &[u8]) -> Result<(Algorithm, Box<dyn Dynamic>), RecordError> {
+    // Every other error than a mismatched shape is the record's own: report it at once.
+    for n in 1..=MAX_DIMENSION {
+        for algorithm in Algorithm::ALL {
+            match every_dimension!(n, load_at, algorithm, bytes) {
+                Some(Ok(o)) => return Ok((algorithm, o)),
+                Some(Err(RecordError::Shape)) | None => {}
+                Some(Err(e)) => return Err(e),
+            }
+        }
+    }
+    Err(RecordError::Shape)
+}
