@@ -577,3 +577,32 @@ fn drive<const N: usize, O: Optimizer<N>>(
         unsafe_episodes,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The oracle's safety judgement on the AUV (by cost) and the hopper (by the gait): the
+    /// bound is the bare controller's cost plus the margin, the bare controller's own first
+    /// episode is safe and has that cost, and the box's upper corner is unsafe on both (on
+    /// the AUV a cost above the bound, on the hopper an episode off the gait).
+    #[test]
+    fn the_bare_controller_is_safe_and_the_box_corner_is_not() {
+        for task in [Task::Auv, Task::Hopper] {
+            let mut trial = Trial::new(task, 1);
+            let bare = trial.start_cost().unwrap();
+            assert_eq!(
+                trial.safe_threshold(),
+                Some(bare + SAFETY_MARGIN * bare.abs())
+            );
+            let start = trial.start().to_vec();
+            let first = trial.episode(&start).unwrap();
+            assert_eq!(first.cost, bare, "{task:?}");
+            assert!(!first.unsafe_episode, "{task:?}");
+            let corner = trial.upper().to_vec();
+            assert!(trial.episode(&corner).unwrap().unsafe_episode, "{task:?}");
+            // The bound's own episode is not counted as the trial's.
+            assert_eq!(trial.evaluations(), 2);
+        }
+    }
+}
