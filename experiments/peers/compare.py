@@ -285,11 +285,17 @@ def one(job):
 
 
 def quartiles(values):
+    """The quartiles by linear interpolation (statistics.quantiles' "inclusive"), where a
+    quartile between two failures (+∞), or on one, is +∞ rather than ∞ − ∞ = NaN."""
     values = sorted(values)
-    if len(values) < 2:
-        return values[0], values[0], values[0]
-    q = statistics.quantiles(values, n=4, method="inclusive")
-    return q[0], statistics.median(values), q[2]
+
+    def at(p):
+        x = p * (len(values) - 1)
+        i, f = int(x), x - int(x)
+        after = values[min(i + 1, len(values) - 1)]
+        return values[i] if f == 0 or after == values[i] else values[i] + f * (after - values[i])
+
+    return at(0.25), at(0.5), at(0.75)
 
 
 def table(results, tasks, methods):
@@ -307,7 +313,7 @@ def table(results, tasks, methods):
             budget = rows[0]["budget"]
             firsts = [r["first"] if r["first"] is not None else float("inf") for r in rows]
             q1, med, q3 = quartiles(firsts)
-            show = lambda v: f"> {budget}" if v == float("inf") else f"{v:.0f}"  # noqa: E731
+            show = lambda v: f"> {budget}" if v == float("inf") else f"{v:.4g}"  # noqa: E731
             ok = sum(r["first"] is not None for r in rows)
             lines.append(
                 f"| {task} | {method} | {ok}/{len(rows)} | {show(med)} ({show(q1)}–{show(q3)}) "
@@ -357,10 +363,11 @@ def main():
         for r in pool.imap_unordered(one, jobs):
             results.append(r)
             print(f"{r['task']:6} {r['method']:14} seed {r['seed']:3}: first {r['first']}, "
-                  f"best {r['best']:.4g}, deployed {r['deployed']:.4g}", file=sys.stderr)
-    if a.json:
-        with open(a.json, "w") as out:
-            json.dump(results, out, indent=1)
+                  f"best {r['best']:.4g}, deployed {r['deployed']:.4g}, unsafe {r['unsafe']}",
+                  file=sys.stderr)
+            if a.json:  # after every run, so that a long run stopped early keeps its rows
+                with open(a.json, "w") as out:
+                    json.dump(results, out, indent=1)
     print(table(results, tasks, methods))
 
 
