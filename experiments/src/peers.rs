@@ -1,8 +1,7 @@
 //! The robots' own tasks as black boxes, for the side-by-side comparison with the Python
 //! peers (pycma, ZOOpt, nevergrad, SafeOpt, bayesian-optimization): a [`Trial`] scores θ one
-//! episode at a time, exactly as an
-//! optimizer on the robot sees it, and re-runs a returned θ on fresh episodes (the *deployed*
-//! cost, the figure a user gets). The `oracle` binary serves trials over a line protocol to
+//! episode at a time, exactly as an optimizer on the robot sees it, and re-runs a returned θ
+//! on fresh episodes (the *deployed* cost, the figure a user gets). The `oracle` binary serves trials over a line protocol to
 //! `peers/compare.py`; [`run_library`] drives the library's optimizers on the same trials
 //! in-process, so every method sees the same episodes in the same order.
 //!

@@ -1,8 +1,8 @@
 //! The oracle: scores θ on the robots' tasks over a line protocol on stdin/stdout, so that
 //! optimizers outside Rust (pycma, ZOOpt, nevergrad, SafeOpt, bayesian-optimization;
-//! `peers/compare.py`) are driven on
-//! exactly the episodes the library's optimizers see. One request per line, one reply per
-//! line; numbers are space-separated, `err <why>` answers a bad request.
+//! `peers/compare.py`) are driven on exactly the episodes the library's optimizers see. One
+//! request per line, one reply per line; numbers are space-separated, `err <why>` answers a
+//! bad request.
 //!
 //! ```text
 //! task <name> <seed>            → ok <n> <budget> <threshold> <safe threshold>
