@@ -348,7 +348,12 @@ def main():
     )
     a = p.parse_args()
     if a.table:
-        results = [r for name in a.table for r in json.load(open(name))]
+        # A (task, method, seed) saved twice (overlapping runs) counts once: it is the same run.
+        runs = {}
+        for name in a.table:
+            for r in json.load(open(name)):
+                runs.setdefault((r["task"], r["method"], r["seed"]), r)
+        results = list(runs.values())
         tasks = list(dict.fromkeys(r["task"] for r in results))
         known = LIBRARY + PEERS
         methods = [m for m in known if any(r["method"] == m for r in results)]
