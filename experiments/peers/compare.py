@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Side by side: the library's optimizers against pycma, ZOOpt and nevergrad on the robots'
-own tasks (AUV survey, hopping leg, via-point arm), with the same budgets, seeds and episodes.
+"""Side by side: the library's optimizers against pycma, ZOOpt, nevergrad, SafeOpt and
+bayesian-optimization on the robots' own tasks (AUV survey, hopping leg, via-point arm), with
+the same budgets, seeds and episodes.
 
 Every method scores θ through the `oracle` binary (experiments/src/bin/oracle.rs): the
 library's methods run inside it (`run`), the peers ask it for one episode at a time (`eval`).
@@ -11,11 +12,17 @@ the arm's, in half-widths).
 Per task and method: success rate, median and IQR of the episodes to the success threshold
 (a run that never succeeds counts as beyond the budget), the median best cost, the median
 deployed cost (the returned θ re-run on 5 fresh episodes: the figure a user gets) and the
-optimizer's own time per evaluation (oracle time excluded).
+optimizer's own time per evaluation (oracle time excluded), and the unsafe episodes summed
+over the seeds: the oracle judges each episode (on the hopper an episode off the gait,
+elsewhere a cost above the bare controller's by more than 20 %, the bound that the safe
+methods, `linebo-safe` and `safeopt`, are given).
 
     python3 -m venv .venv-peers && .venv-peers/bin/pip install -r experiments/peers/requirements.txt
     cargo build --release -p experiments --bin oracle
     .venv-peers/bin/python experiments/peers/compare.py --tasks auv --seeds 1-20
+    .venv-peers/bin/python experiments/peers/compare.py --table a.json b.json   # merge runs
+
+The library's rows run without the peers installed (plain `python3`, no numpy).
 
 Outside `cargo test` and CI: the peers come from PyPI.
 """
@@ -30,6 +37,7 @@ import statistics
 import subprocess
 import sys
 import time
+import warnings
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -41,8 +49,8 @@ except ImportError:
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ORACLE = os.path.join(ROOT, "target", "release", "oracle")
-LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar"]
-PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt"]
+LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar", "linebo", "linebo-safe"]
+PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt", "safeopt", "bayes-opt"]
 STEP = {"auv": 0.25, "auv-calm": 0.25, "hopper": 1.0 / 6.0, "arm": 0.01, "sphere": 0.3, "ackley": 0.3}
 
 
@@ -54,8 +62,10 @@ class Oracle:
         self.proc = subprocess.Popen(
             [ORACLE], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1
         )
-        n, budget, threshold = self.ask(f"task {task} {seed}").split()[1:]
+        n, budget, threshold, safe = self.ask(f"task {task} {seed}").split()[1:]
         self.n, self.budget, self.threshold = int(n), int(budget), float(threshold)
+        # The safe methods' cost bound: the bare controller's cost plus the margin.
+        self.safe_threshold = float(safe)
         vector = (lambda v: np.array(v, dtype=float)) if np else (lambda v: [float(x) for x in v])
         self.lower = vector(self.ask("lower").split())
         self.upper = vector(self.ask("upper").split())
@@ -93,15 +103,16 @@ class Scorer:
     """f(u) for a peer: one episode of the oracle, recorded; stops at the budget."""
 
     def __init__(self, oracle, budget):
-        self.oracle, self.budget, self.costs = oracle, budget, []
+        self.oracle, self.budget, self.costs, self.unsafe = oracle, budget, [], 0
 
     def __call__(self, u):
         if len(self.costs) >= self.budget:
             raise Budget()
         x = self.oracle.box(np.asarray(u, dtype=float))
-        c = float(self.oracle.ask("eval " + " ".join(f"{v:.9e}" for v in x)))
-        self.costs.append(c)
-        return c
+        c, safety = self.oracle.ask("eval " + " ".join(f"{v:.9e}" for v in x)).split()
+        self.costs.append(float(c))
+        self.unsafe += safety == "unsafe"
+        return float(c)
 
 
 def run_peer(method, oracle, budget, seed):
@@ -145,9 +156,97 @@ def run_peer(method, oracle, budget, seed):
             cand = opt.ask()
             opt.tell(cand, f(cand.value))
         returned = np.array(opt.provide_recommendation().value)
+    elif method == "safeopt":
+        returned = run_safeopt(f, oracle, x0, budget)
+    elif method == "bayes-opt":
+        returned = run_bayes_opt(f, x0, budget, seed)
     else:
         raise ValueError(method)
-    return f.costs, oracle.box(returned)
+    return f, oracle.box(returned)
+
+
+# LineBO's GP (experiments/src/peers.rs, `line_bo_config`), given to SafeOpt as well: the
+# cost minus the start's first cost, in units of it; a squared-exponential kernel of signal
+# σ_f = 1, length scale 0.15 of the box (0.3 in the [-1, 1] box), noise σ_n = 0.05; β = 2.
+LENGTH_SCALE, NOISE, BETA = 0.3, 0.05, 2.0
+# Residuals clipped like LineBO's (a rejected θ scores +∞).
+CLIP = 1e6
+
+
+def import_safeopt():
+    """safeopt 0.16 (its last release, 2017) imports `collections.Sequence` (gone since
+    Python 3.10) and uses `np.float` and `np.bool` (gone since numpy 1.24): restore the
+    three old names, then import it."""
+    import collections
+    import collections.abc
+
+    collections.Sequence = collections.abc.Sequence
+    for name, alias in (("float", float), ("bool", bool)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            missing = not hasattr(np, name)
+        if missing:
+            setattr(np, name, alias)
+    import safeopt
+
+    return safeopt
+
+
+def run_safeopt(f, oracle, x0, budget):
+    """The authors' SafeOpt (`SafeOptSwarm`: the particle-swarm form for more than a few
+    dimensions, as every task here has) with GPy, from the start θ (its first episode is
+    the safe seed), maximising the negated residual with LineBO's GP and β, and the safety
+    bound the oracle gives `linebo-safe`. Returns the best evaluated θ (`get_maximum`)."""
+    safeopt = import_safeopt()
+    import GPy
+
+    c0 = f(x0)
+    scale = max(abs(c0), 1e-30)
+    y = lambda c: np.clip((c0 - c) / scale, -CLIP, CLIP)  # noqa: E731
+    kernel = GPy.kern.RBF(input_dim=oracle.n, variance=1.0, lengthscale=LENGTH_SCALE)
+    gp = GPy.models.GPRegression(
+        np.array([x0]), np.array([[y(c0)]]), kernel, noise_var=NOISE**2
+    )
+    fmin = (c0 - oracle.safe_threshold) / scale
+    opt = safeopt.SafeOptSwarm(gp, fmin=[fmin], bounds=[(-1.0, 1.0)] * oracle.n, beta=BETA)
+    try:
+        while True:
+            x = opt.optimize()
+            opt.add_new_data_point(x, np.array([[y(f(x))]]))
+    except Budget:
+        pass
+    return np.array(opt.get_maximum()[0])
+
+
+def run_bayes_opt(f, x0, budget, seed):
+    """`bayesian-optimization` (the version nevergrad pins) with its defaults (a Matérn-5/2
+    GP refitted every step, the UCB acquisition with κ = 2.576), the start θ registered as
+    its first point. Returns its best evaluated θ."""
+    from bayes_opt import BayesianOptimization, UtilityFunction
+
+    keys = [f"x{i:03d}" for i in range(len(x0))]
+    opt = BayesianOptimization(
+        f=None,
+        pbounds={k: (-1.0, 1.0) for k in keys},
+        random_state=seed,
+        verbose=0,
+        allow_duplicate_points=True,
+    )
+    utility = UtilityFunction(kind="ucb", kappa=2.576)
+
+    def target(x):
+        c = f(x)
+        return -min(c, CLIP * max(abs(f.costs[0]), 1.0))
+
+    x = np.array(x0)
+    try:
+        while True:
+            opt.register(params=dict(zip(keys, x)), target=target(x))
+            suggestion = opt.suggest(utility)
+            x = np.array([suggestion[k] for k in keys])
+    except Budget:
+        pass
+    return np.array([opt.max["params"][k] for k in keys])
 
 
 def one(job):
@@ -155,18 +254,21 @@ def one(job):
     oracle = Oracle(task, seed)
     budget = budget or oracle.budget
     if method in LIBRARY:
-        evals, first, best, deployed, ns = oracle.ask(f"run {method} {budget} {seed}").split()
+        answer = oracle.ask(f"run {method} {budget} {seed}").split()
+        evals, first, best, deployed, ns, unsafe = answer
         result = dict(
             first=None if first == "-" else int(first),
             best=float(best),
             deployed=float(deployed),
             us_per_eval=float(ns) / 1e3,
             evaluations=int(evals),
+            unsafe=int(unsafe),
         )
     else:
         t0 = time.perf_counter()
         oracle.seconds = 0.0
-        costs, returned = run_peer(method, oracle, budget, seed)
+        scored, returned = run_peer(method, oracle, budget, seed)
+        costs = scored.costs
         own = time.perf_counter() - t0 - oracle.seconds
         deployed = float(oracle.ask("deploy " + " ".join(f"{v:.9e}" for v in returned)))
         first = next((k + 1 for k, c in enumerate(costs) if c < oracle.threshold), None)
@@ -176,24 +278,32 @@ def one(job):
             deployed=deployed,
             us_per_eval=own / max(len(costs), 1) * 1e6,
             evaluations=len(costs),
+            unsafe=scored.unsafe,
         )
     oracle.close()
     return dict(task=task, method=method, seed=seed, budget=budget, **result)
 
 
 def quartiles(values):
+    """The quartiles by linear interpolation (statistics.quantiles' "inclusive"), where a
+    quartile between two failures (+∞), or on one, is +∞ rather than ∞ − ∞ = NaN."""
     values = sorted(values)
-    if len(values) < 2:
-        return values[0], values[0], values[0]
-    q = statistics.quantiles(values, n=4, method="inclusive")
-    return q[0], statistics.median(values), q[2]
+
+    def at(p):
+        x = p * (len(values) - 1)
+        i, f = int(x), x - int(x)
+        after = values[min(i + 1, len(values) - 1)]
+        return values[i] if f == 0 or after == values[i] else values[i] + f * (after - values[i])
+
+    return at(0.25), at(0.5), at(0.75)
 
 
 def table(results, tasks, methods):
     lines = [
         "| task | method | success | episodes to success, median (IQR) | best cost (median) "
-        "| deployed cost (median) | optimizer µs / evaluation (median) |",
-        "|---|---|---|---|---|---|---|",
+        "| deployed cost (median) | optimizer µs / evaluation (median) "
+        "| unsafe episodes (sum) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for task in tasks:
         for method in methods:
@@ -203,13 +313,14 @@ def table(results, tasks, methods):
             budget = rows[0]["budget"]
             firsts = [r["first"] if r["first"] is not None else float("inf") for r in rows]
             q1, med, q3 = quartiles(firsts)
-            show = lambda v: f"> {budget}" if v == float("inf") else f"{v:.0f}"  # noqa: E731
+            show = lambda v: f"> {budget}" if v == float("inf") else f"{v:.4g}"  # noqa: E731
             ok = sum(r["first"] is not None for r in rows)
             lines.append(
                 f"| {task} | {method} | {ok}/{len(rows)} | {show(med)} ({show(q1)}–{show(q3)}) "
                 f"| {statistics.median(r['best'] for r in rows):.3g} "
                 f"| {statistics.median(r['deployed'] for r in rows):.3g} "
-                f"| {statistics.median(r['us_per_eval'] for r in rows):.1f} |"
+                f"| {statistics.median(r['us_per_eval'] for r in rows):.1f} "
+                f"| {sum(r['unsafe'] for r in rows)} |"
             )
     return "\n".join(lines)
 
@@ -229,7 +340,25 @@ def main():
     p.add_argument("--budget", type=int, default=0, help="episodes (default: the task's)")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--json", help="write every run's result here")
+    p.add_argument(
+        "--table",
+        nargs="+",
+        metavar="JSON",
+        help="print the table of earlier runs' --json files (merged; no run)",
+    )
     a = p.parse_args()
+    if a.table:
+        # A (task, method, seed) saved twice (overlapping runs) counts once: it is the same run.
+        runs = {}
+        for name in a.table:
+            for r in json.load(open(name)):
+                runs.setdefault((r["task"], r["method"], r["seed"]), r)
+        results = list(runs.values())
+        tasks = list(dict.fromkeys(r["task"] for r in results))
+        known = LIBRARY + PEERS
+        methods = [m for m in known if any(r["method"] == m for r in results)]
+        print(table(results, tasks, methods))
+        return
     if not os.path.exists(ORACLE):
         sys.exit("build the oracle first: cargo build --release -p experiments --bin oracle")
     tasks, methods = a.tasks.split(","), a.methods.split(",")
@@ -239,10 +368,11 @@ def main():
         for r in pool.imap_unordered(one, jobs):
             results.append(r)
             print(f"{r['task']:6} {r['method']:14} seed {r['seed']:3}: first {r['first']}, "
-                  f"best {r['best']:.4g}, deployed {r['deployed']:.4g}", file=sys.stderr)
-    if a.json:
-        with open(a.json, "w") as out:
-            json.dump(results, out, indent=1)
+                  f"best {r['best']:.4g}, deployed {r['deployed']:.4g}, unsafe {r['unsafe']}",
+                  file=sys.stderr)
+            if a.json:  # after every run, so that a long run stopped early keeps its rows
+                with open(a.json, "w") as out:
+                    json.dump(results, out, indent=1)
     print(table(results, tasks, methods))
 
 

@@ -1,7 +1,7 @@
 //! The robots' own tasks as black boxes, for the side-by-side comparison with the Python
-//! peers (pycma, ZOOpt, nevergrad): a [`Trial`] scores θ one episode at a time, exactly as an
-//! optimizer on the robot sees it, and re-runs a returned θ on fresh episodes (the *deployed*
-//! cost, the figure a user gets). The `oracle` binary serves trials over a line protocol to
+//! peers (pycma, ZOOpt, nevergrad, SafeOpt, bayesian-optimization): a [`Trial`] scores θ one
+//! episode at a time, exactly as an optimizer on the robot sees it, and re-runs a returned θ
+//! on fresh episodes (the *deployed* cost, the figure a user gets). The `oracle` binary serves trials over a line protocol to
 //! `peers/compare.py`; [`run_library`] drives the library's optimizers on the same trials
 //! in-process, so every method sees the same episodes in the same order.
 //!
@@ -12,6 +12,10 @@
 //! | `hopper` | 31 | the task's box | zero correction | 200 | cost ≤ 3·10⁻⁴ | the seed's block course, replayed every episode; deployed on 5 unseen courses |
 //! | `arm` | 50 | [−10⁴, 10⁴] | minimum-jerk θ | 1,000 | cost < 1 % of the start's | deterministic |
 //! | `sphere`, `ackley` | 10 | [−1, 1] | 0 | 100 | cost < 0.01 (Sphere), Ackley's value at that distance | shifted to 0.2, deterministic |
+//!
+//! Every episode is also judged safe or unsafe ([`Scored`]): on the hopper an episode off the
+//! gait, on the other tasks a cost above the bare controller's by more than
+//! [`SAFETY_MARGIN`] of it ([`Trial::safe_threshold`], the bound the safe methods are given).
 
 use std::time::Instant;
 
@@ -117,6 +121,19 @@ pub struct Trial {
     start: Vec<f32>,
     threshold: f32,
     evaluations: u32,
+    /// The safe methods' cost bound, computed on first use ([`Trial::safe_threshold`]).
+    bound: std::cell::OnceCell<Option<f32>>,
+}
+
+/// One learning episode: its cost and whether it was unsafe ([`Trial::episode`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scored {
+    /// The episode's cost.
+    pub cost: f32,
+    /// Unsafe: on the hopper an episode off the gait (a collapse, fewer than 15 hops, or a
+    /// mean apex outside the set height's band: `HopEpisode::hops_stably`); on the other
+    /// tasks a cost above [`Trial::safe_threshold`]. A θ the task rejects is unsafe.
+    pub unsafe_episode: bool,
 }
 
 fn to_vec<const N: usize>(v: &Vector<N>) -> Vec<f32> {
@@ -195,6 +212,7 @@ impl Trial {
             start,
             threshold,
             evaluations: 0,
+            bound: std::cell::OnceCell::new(),
         }
     }
 
@@ -227,7 +245,7 @@ impl Trial {
     /// trial (not counted as an evaluation): the bare controller's cost, the reference of
     /// the safety threshold ([`unsafe_threshold`]).
     pub fn start_cost(&self) -> Option<f32> {
-        Trial::new(self.task, self.seed).score(&self.start)
+        Some(Trial::new(self.task, self.seed).run(&self.start)?.0)
     }
 
     /// Episodes scored so far.
@@ -246,18 +264,49 @@ impl Trial {
         })
     }
 
+    /// The cost bound of the safe methods (`linebo-safe` and the Python peers' SafeOpt): the
+    /// bare controller's cost ([`Trial::start_cost`]) plus [`SAFETY_MARGIN`] of its
+    /// magnitude. It is also the unsafe-episode rule on every task but the hopper.
+    pub fn safe_threshold(&self) -> Option<f32> {
+        *self.bound.get_or_init(|| {
+            let bare = self.start_cost()?;
+            Some(bare + SAFETY_MARGIN * bare.abs())
+        })
+    }
+
     /// One learning episode of θ (clipped into the box): its cost. `None` for a malformed θ.
     pub fn score(&mut self, x: &[f32]) -> Option<f32> {
+        self.episode(x).map(|e| e.cost)
+    }
+
+    /// One learning episode of θ (clipped into the box): its cost and whether it was unsafe
+    /// (see [`Scored`]); the cost is the one [`Trial::score`] gives. `None` for a malformed θ.
+    pub fn episode(&mut self, x: &[f32]) -> Option<Scored> {
+        let (cost, off_gait) = self.run(x)?;
+        let unsafe_episode = match self.task {
+            Task::Hopper => off_gait,
+            _ => self
+                .safe_threshold()
+                .is_none_or(|h| cost.is_nan() || cost > h),
+        };
+        Some(Scored {
+            cost,
+            unsafe_episode,
+        })
+    }
+
+    /// One learning episode: its cost and whether it left the hopper's gait.
+    fn run(&mut self, x: &[f32]) -> Option<(f32, bool)> {
         let x = self.clip(x)?;
         self.evaluations += 1;
         let mut rng = Xoshiro128PlusPlus::seed_from_u64(self.seed);
         Some(match &mut self.episodes {
-            Episodes::Auv(auv) => auv_cost(&x, auv, &mut rng),
+            Episodes::Auv(auv) => (auv_cost(&x, auv, &mut rng), false),
             Episodes::Hopper(seed) => {
-                hopper_cost(&x, &mut hopper_task::plant(true, 1000 + *seed), &mut rng)
+                hopper_episode(&x, &mut hopper_task::plant(true, 1000 + *seed), &mut rng)
             }
-            Episodes::Arm(a) => a.cost(&to_vector(&x)?),
-            Episodes::Synthetic(f) => f(&to_vector(&x)?, 0.2),
+            Episodes::Arm(a) => (a.cost(&to_vector(&x)?), false),
+            Episodes::Synthetic(f) => (f(&to_vector(&x)?, 0.2), false),
         })
     }
 
@@ -276,7 +325,7 @@ impl Trial {
                 })
                 .sum(),
             Episodes::Hopper(_) => (0..DEPLOY_EPISODES)
-                .map(|k| hopper_cost(&x, &mut hopper_task::plant(true, fresh(k)), &mut rng))
+                .map(|k| hopper_episode(&x, &mut hopper_task::plant(true, fresh(k)), &mut rng).0)
                 .sum(),
             Episodes::Arm(a) => DEPLOY_EPISODES as f32 * a.cost(&to_vector(&x)?),
             Episodes::Synthetic(f) => DEPLOY_EPISODES as f32 * f(&to_vector(&x)?, 0.2),
@@ -290,13 +339,15 @@ fn auv_cost(x: &[f32], auv: &mut Auv, rng: &mut Xoshiro128PlusPlus) -> f32 {
     auv_task::evaluate(theta, auv, rng, false).map_or(f32::INFINITY, |e| e.report.cost)
 }
 
-fn hopper_cost(
+/// A hopper episode's cost and whether it left the gait (a rejected θ: +∞ and off).
+fn hopper_episode(
     x: &[f32],
     hopper: &mut host_tests::hopper::Hopper,
     rng: &mut Xoshiro128PlusPlus,
-) -> f32 {
+) -> (f32, bool) {
     let theta = to_vector(x).unwrap_or_else(Vector::zeros);
-    hopper_task::evaluate(theta, hopper, rng, false).map_or(f32::INFINITY, |e| e.report.cost)
+    hopper_task::evaluate(theta, hopper, rng, false)
+        .map_or((f32::INFINITY, true), |e| (e.report.cost, !e.hops_stably()))
 }
 
 /// What one optimizer run did on a trial.
@@ -308,6 +359,8 @@ pub struct RunReport {
     pub returned: Vec<f32>,
     /// Mean optimizer time per evaluation (ask + tell), nanoseconds.
     pub optimizer_ns: f64,
+    /// The unsafe episodes of the run ([`Scored::unsafe_episode`]).
+    pub unsafe_episodes: usize,
 }
 
 impl RunReport {
@@ -336,14 +389,14 @@ pub const LIBRARY_METHODS: [&str; 7] = [
     "linebo-safe",
 ];
 
-/// An episode is unsafe when its cost exceeds the bare controller's (the start's, in the
-/// trial's first episode) by more than this fraction of it.
+/// The safe methods' cost bound exceeds the bare controller's cost (the start's, in the
+/// trial's first episode) by this fraction of its magnitude ([`Trial::safe_threshold`]).
 pub const SAFETY_MARGIN: f32 = 0.2;
 
-/// The cost above which an episode of `trial` counts as unsafe: the bare controller's cost
-/// times 1 + [`SAFETY_MARGIN`]. `linebo-safe` is given it as its threshold.
+/// [`Trial::safe_threshold`]: the bare controller's cost plus [`SAFETY_MARGIN`] of it.
+/// `linebo-safe` is given it as its threshold.
 pub fn unsafe_threshold(trial: &Trial) -> Option<f32> {
-    Some(trial.start_cost()?.abs() * SAFETY_MARGIN + trial.start_cost()?)
+    trial.safe_threshold()
 }
 
 /// LineBO's settings for a trial, by the rule of its docs: σ_f = the start's cost (a bad θ
@@ -492,6 +545,7 @@ fn drive<const N: usize, O: Optimizer<N>>(
 ) -> RunReport {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
     let mut costs = Vec::with_capacity(budget as usize);
+    let mut unsafe_episodes = 0;
     let mut spent = std::time::Duration::ZERO;
     while costs.len() < budget as usize && optimizer.status() == Status::Running {
         let t0 = Instant::now();
@@ -499,7 +553,12 @@ fn drive<const N: usize, O: Optimizer<N>>(
             break;
         };
         spent += t0.elapsed();
-        let cost = trial.score(theta.as_slice()).unwrap_or(f32::INFINITY);
+        let scored = trial.episode(theta.as_slice()).unwrap_or(Scored {
+            cost: f32::INFINITY,
+            unsafe_episode: true,
+        });
+        let cost = scored.cost;
+        unsafe_episodes += usize::from(scored.unsafe_episode);
         costs.push(cost);
         let t1 = Instant::now();
         let told = optimizer.tell(cost.min(f32::MAX));
@@ -515,5 +574,35 @@ fn drive<const N: usize, O: Optimizer<N>>(
         optimizer_ns: spent.as_nanos() as f64 / costs.len().max(1) as f64,
         costs,
         returned,
+        unsafe_episodes,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The oracle's safety judgement on the AUV (by cost) and the hopper (by the gait): the
+    /// bound is the bare controller's cost plus the margin, the bare controller's own first
+    /// episode is safe and has that cost, and the box's upper corner is unsafe on both (on
+    /// the AUV a cost above the bound, on the hopper an episode off the gait).
+    #[test]
+    fn the_bare_controller_is_safe_and_the_box_corner_is_not() {
+        for task in [Task::Auv, Task::Hopper] {
+            let mut trial = Trial::new(task, 1);
+            let bare = trial.start_cost().unwrap();
+            assert_eq!(
+                trial.safe_threshold(),
+                Some(bare + SAFETY_MARGIN * bare.abs())
+            );
+            let start = trial.start().to_vec();
+            let first = trial.episode(&start).unwrap();
+            assert_eq!(first.cost, bare, "{task:?}");
+            assert!(!first.unsafe_episode, "{task:?}");
+            let corner = trial.upper().to_vec();
+            assert!(trial.episode(&corner).unwrap().unsafe_episode, "{task:?}");
+            // The bound's own episode is not counted as the trial's.
+            assert_eq!(trial.evaluations(), 2);
+        }
     }
 }

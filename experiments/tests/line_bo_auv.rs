@@ -1,9 +1,10 @@
 //! LineBO against the library's other optimizers on the AUV survey from W = 0 (the peers'
 //! `auv` trial: 150 episodes, 10 seeds, success = cost < 1, within D = 1 m) and on the
 //! hopper (the peers' `hopper` trial: 200 episodes, success = cost ≤ 3·10⁻⁴), and the unsafe
-//! episodes of every method: episodes whose cost exceeds the bare controller's (the start
-//! θ in the seed's first episode) by more than [`SAFETY_MARGIN`]. `linebo-safe` is LineBO
-//! given that bound as its threshold. Release only:
+//! episodes of every method (`experiments::peers::Scored`): on the AUV episodes whose cost
+//! exceeds the bare controller's (the start θ in the seed's first episode) by more than
+//! [`SAFETY_MARGIN`], on the hopper episodes off the gait. `linebo-safe` is LineBO given
+//! that cost bound as its threshold. Release only:
 //!
 //! ```text
 //! cargo test --release -p experiments --test line_bo_auv -- --nocapture
@@ -11,7 +12,7 @@
 
 #![cfg(not(debug_assertions))]
 
-use experiments::peers::{SAFETY_MARGIN, Task, Trial, run_library, unsafe_threshold};
+use experiments::peers::{SAFETY_MARGIN, Task, Trial, run_library};
 use host_tests::median;
 
 const SEEDS: std::ops::RangeInclusive<u64> = 1..=10;
@@ -38,7 +39,7 @@ fn quantile(v: &[f64], p: f64) -> f64 {
 /// its whole budget on every seed.
 fn methods_table(task: Task) {
     println!(
-        "{} from the start, {} episodes, seeds {SEEDS:?}; unsafe: cost > (1 + {SAFETY_MARGIN}) × bare",
+        "{} from the start, {} episodes, seeds {SEEDS:?}; unsafe: off the gait (hopper), else cost > (1 + {SAFETY_MARGIN}) × bare",
         task.name(),
         task.budget()
     );
@@ -63,7 +64,6 @@ fn methods_table(task: Task) {
         let (mut successes, mut unsafe_episodes) = (0, 0);
         for seed in SEEDS {
             let mut trial = Trial::new(task, seed);
-            let h = unsafe_threshold(&trial).unwrap();
             let report = run_library(method, &mut trial, task.budget(), seed).unwrap();
             assert_eq!(
                 report.costs.len(),
@@ -73,7 +73,7 @@ fn methods_table(task: Task) {
             let first = report.first_success(trial.threshold());
             successes += usize::from(first.is_some());
             firsts.push(first.map_or(f64::INFINITY, |k| k as f64));
-            unsafe_episodes += report.costs.iter().filter(|c| **c > h).count();
+            unsafe_episodes += report.unsafe_episodes;
             deployed.push(f64::from(trial.deployed(&report.returned).unwrap()));
             micros.push(report.optimizer_ns / 1e3);
         }
@@ -95,9 +95,7 @@ fn line_bo_on_the_auv() {
     methods_table(Task::Auv);
 }
 
-/// The hopper (31 parameters, 200 episodes). Its unsafe episodes here are by the same cost
-/// rule as the AUV's, not by the gait (an episode off the gait), which this table does not
-/// count.
+/// The hopper (31 parameters, 200 episodes); its unsafe episodes are those off the gait.
 #[test]
 fn line_bo_on_the_hopper() {
     methods_table(Task::Hopper);
@@ -121,7 +119,6 @@ fn settings_table(safe: bool, settings: &[(f32, f32, f32, u32)]) {
         let (mut unsafe_episodes, mut firsts) = (0, vec![]);
         for seed in SEEDS {
             let mut trial = Trial::new(task, seed);
-            let h = unsafe_threshold(&trial).unwrap();
             let bare = trial.start_cost().unwrap();
             let config = LineBoConfig {
                 length_scale,
@@ -139,9 +136,10 @@ fn settings_table(safe: bool, settings: &[(f32, f32, f32, u32)]) {
             let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(seed);
             let (mut k, mut first) = (0, None);
             while let Ok(theta) = s.ask(&mut rng) {
-                let cost = trial.score(theta.as_slice()).unwrap();
+                let scored = trial.episode(theta.as_slice()).unwrap();
+                let cost = scored.cost;
                 k += 1;
-                unsafe_episodes += usize::from(cost > h);
+                unsafe_episodes += usize::from(scored.unsafe_episode);
                 if first.is_none() && cost < trial.threshold() {
                     first = Some(k);
                 }

@@ -1,17 +1,22 @@
 //! The oracle: scores θ on the robots' tasks over a line protocol on stdin/stdout, so that
-//! optimizers outside Rust (pycma, ZOOpt, nevergrad; `peers/compare.py`) are driven on
-//! exactly the episodes the library's optimizers see. One request per line, one reply per
-//! line; numbers are space-separated, `err <why>` answers a bad request.
+//! optimizers outside Rust (pycma, ZOOpt, nevergrad, SafeOpt, bayesian-optimization;
+//! `peers/compare.py`) are driven on exactly the episodes the library's optimizers see. One
+//! request per line, one reply per line; numbers are space-separated, `err <why>` answers a
+//! bad request.
 //!
 //! ```text
-//! task <name> <seed>            → ok <n> <budget> <threshold>   (a new trial)
+//! task <name> <seed>            → ok <n> <budget> <threshold> <safe threshold>
+//!                                 (a new trial; success is a cost below <threshold>, the
+//!                                 safe methods' cost bound is <safe threshold>)
 //! lower | upper | start         → n numbers: the box and the start θ
-//! eval <θ₁ … θₙ>                → the cost of one learning episode of θ (clipped into the box)
+//! eval <θ₁ … θₙ>                → <cost> <safe|unsafe>: one learning episode of θ (clipped
+//!                                 into the box), and whether it was unsafe (on the hopper
+//!                                 off the gait, elsewhere a cost above the safe threshold)
 //! deploy <θ₁ … θₙ>              → θ's mean cost over 5 fresh episodes (not counted)
 //! run <method> <budget> <seed>  → <evaluations> <first success or -> <best> <deployed>
-//!                                 <optimizer ns per evaluation>: a library method
-//!                                 (coordinate, sracos, crs, cmaes, rockstar) on a fresh
-//!                                 copy of the trial
+//!                                 <optimizer ns per evaluation> <unsafe episodes>: a
+//!                                 library method (coordinate, sracos, crs, cmaes, rockstar,
+//!                                 linebo, linebo-safe) on a fresh copy of the trial
 //! quit
 //! ```
 //!
@@ -42,10 +47,11 @@ fn reply(trial: &mut Option<(Task, u64, Trial)>, line: &str) -> String {
             (Some(task), Some(seed)) => {
                 let t = Trial::new(task, seed);
                 let answer = format!(
-                    "ok {} {} {:e}",
+                    "ok {} {} {:e} {:e}",
                     task.dimension(),
                     task.budget(),
-                    t.threshold()
+                    t.threshold(),
+                    t.safe_threshold().unwrap_or(f32::NAN)
                 );
                 *trial = Some((task, seed, t));
                 answer
@@ -60,8 +66,12 @@ fn reply(trial: &mut Option<(Task, u64, Trial)>, line: &str) -> String {
         "lower" => numbers(t.lower()),
         "upper" => numbers(t.upper()),
         "start" => numbers(t.start()),
-        "eval" => match parse_theta(words).and_then(|x| t.score(&x)) {
-            Some(c) => format!("{c:e}"),
+        "eval" => match parse_theta(words).and_then(|x| t.episode(&x)) {
+            Some(e) => format!(
+                "{:e} {}",
+                e.cost,
+                if e.unsafe_episode { "unsafe" } else { "safe" }
+            ),
             None => format!("err eval needs {} finite numbers", task.dimension()),
         },
         "deploy" => match parse_theta(words).and_then(|x| t.deployed(&x)) {
@@ -83,11 +93,12 @@ fn reply(trial: &mut Option<(Task, u64, Trial)>, line: &str) -> String {
                         .map_or("-".to_string(), |k| k.to_string());
                     let deployed = fresh.deployed(&r.returned).unwrap_or(f32::NAN);
                     format!(
-                        "{} {first} {:e} {:e} {:.0}",
+                        "{} {first} {:e} {:e} {:.0} {}",
                         r.costs.len(),
                         r.best(),
                         deployed,
-                        r.optimizer_ns
+                        r.optimizer_ns,
+                        r.unsafe_episodes
                     )
                 }
                 None => format!("err unknown method {method}"),
