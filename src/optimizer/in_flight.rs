@@ -55,7 +55,7 @@
 //! ([`InFlight::optimizer`]) saves the record the firmware loads.
 //!
 //! ```
-//! use ctrl_adapt::optimizer::{CemConfig, DiagonalCem, InFlight, Optimizer};
+//! use ctrl_adapt::optimizer::{CemConfig, DiagonalCem, InFlight};
 //! use ctrl_adapt::Bounds;
 //! use rand_core::SeedableRng;
 //!
