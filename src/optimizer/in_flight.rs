@@ -38,7 +38,7 @@
 //! optimizer is in exactly the state (and the RNG at exactly the position) that the
 //! sequential `ask`/`tell` with the same costs gives; until then [`Optimizer::best`] and
 //! [`Optimizer::evaluations`] count only the costs already told. Holding the costs costs
-//! `C` slots of `2N + 2` words in the wrapper, nothing in the optimizer.
+//! `C` slots of 8N + 12 bytes in the wrapper, nothing in the optimizer.
 //!
 //! # Errors and mixing
 //! A reported cost that is not finite ([`Error::NonFinite`]), a ticket not outstanding
@@ -656,6 +656,16 @@ mod tests {
         let cem = DiagonalCem::<3, 6>::try_new(b, Vector::zeros(), cfg).unwrap();
         assert_eq!(InFlight::<_, 3, 8>::new(cem.clone()).capacity(), 3);
         assert_eq!(InFlight::<_, 3, 2>::new(cem).capacity(), 2);
+    }
+
+    /// Checks the size the docs give: a slot of the wrapper is 8N + 12 bytes (θ, what the
+    /// optimizer remembers of the draw, the ticket or held cost), at N = 1, 18 and 64.
+    #[test]
+    fn a_slot_is_8n_plus_12_bytes() {
+        use core::mem::size_of;
+        assert_eq!(size_of::<(Draw<1>, Slot)>(), 20);
+        assert_eq!(size_of::<(Draw<18>, Slot)>(), 8 * 18 + 12);
+        assert_eq!(size_of::<(Draw<64>, Slot)>(), 8 * 64 + 12);
     }
 
     /// Checks the errors: `suggest` on a stopped search is `Stopped`, and while a
