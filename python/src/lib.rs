@@ -67,6 +67,12 @@ fn narrow(cost: f64) -> f32 {
     }
 }
 
+/// A ticket as the library numbers it; a number no ticket has (negative, beyond u32) is
+/// the library's unknown ticket.
+fn ticket_number(ticket: i64) -> PyResult<u32> {
+    u32::try_from(ticket).map_err(|_| optimizer_error(ctrl_adapt::Error::UnknownTicket))
+}
+
 fn array<'py>(py: Python<'py>, values: &[f32]) -> Bound<'py, PyArray1<f64>> {
     let wide: Vec<f64> = values.iter().map(|&v| f64::from(v)).collect();
     PyArray1::from_vec(py, wide)
@@ -176,16 +182,18 @@ impl PyOptimizer {
     /// takes the costs of a generation in the order they were handed out, so the result
     /// is the sequential one. Raises `OptimizerError` for a ticket not outstanding or a
     /// non-finite cost, changing nothing.
-    fn report(&mut self, ticket: u32, cost: f64) -> PyResult<()> {
+    fn report(&mut self, ticket: i64, cost: f64) -> PyResult<()> {
         self.inner
-            .report(ticket, narrow(cost))
+            .report(ticket_number(ticket)?, narrow(cost))
             .map_err(optimizer_error)
     }
 
     /// Gives `ticket` back (a failed trial): its candidate is handed out again by a later
     /// `suggest`, under a new ticket.
-    fn cancel(&mut self, ticket: u32) -> PyResult<()> {
-        self.inner.cancel(ticket).map_err(optimizer_error)
+    fn cancel(&mut self, ticket: i64) -> PyResult<()> {
+        self.inner
+            .cancel(ticket_number(ticket)?)
+            .map_err(optimizer_error)
     }
 
     /// The outstanding tickets, in hand-out order.

@@ -110,7 +110,10 @@ def test_errors_change_nothing():
     for bad in (lambda: opt.report(out[0][0], float("nan")),
                 lambda: opt.report(out[0][0], 1e300),
                 lambda: opt.report(12345, 1.0),
+                lambda: opt.report(-1, 1.0),
+                lambda: opt.report(2**40, 1.0),
                 lambda: opt.cancel(12345),
+                lambda: opt.cancel(-1),
                 lambda: opt.ask(),
                 lambda: opt.tell(1.0)):
         with pytest.raises(OptimizerError):
