@@ -288,6 +288,9 @@ struct Sample<const N: usize> {
 /// assert!(cem.best().unwrap().cost < 1e-3);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) a whole batch of K can be in flight (its samples do
+/// not depend on the batch's costs), with the sequential run's results.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

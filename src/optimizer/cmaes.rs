@@ -362,6 +362,9 @@ struct Sample<const N: usize> {
 /// assert!((cma.mean()[0] - 0.3).abs() < 1e-4);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) a whole generation of λ = L can be in flight (its
+/// samples do not depend on the generation's costs), with the sequential run's results.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

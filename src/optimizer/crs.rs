@@ -79,6 +79,9 @@ default_is_const!(CrsConfig);
 /// assert!(crs.best().unwrap().cost < 1e-4);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) the M points of Step 0 can be in flight together
+/// (uniform draws); after it, one trial point at a time.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

@@ -449,6 +449,9 @@ struct Regression {
 /// assert!((rock.theta_star()[0] - 0.3).abs() < 1e-3);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) the `initial_samples` rollouts can be in flight
+/// together (drawn around the start); after them, one at a time.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
