@@ -263,6 +263,12 @@ impl<const N: usize> Line<N> {
         if g == self.origin_index() {
             return 0.0;
         }
+        self.grid_t(g)
+    }
+
+    /// t of grid point `g` of the evenly spaced grid, before the origin's index is moved
+    /// onto t = 0.
+    fn grid_t(&self, g: usize) -> f32 {
         let fraction = (g as f32 + self.offset) / GRID as f32;
         self.lower + fraction * (self.upper - self.lower)
     }
@@ -394,12 +400,17 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     fn refresh(&mut self, variance: bool) {
         let Some(line) = self.line else { return };
         let kernel = self.config.kernel();
-        let mut terms = gp::LineTerms::ZERO;
-        self.gp
-            .line_terms(&self.origin, &line.direction, &mut terms);
+        let mut sweep = gp::Sweep::new((line.upper - line.lower) / GRID as f32, &kernel);
         let mut k = SVector::<f32, M>::zeros();
+        let at_origin = line.origin_index();
         for g in 0..GRID {
-            self.gp.line_column(&terms, line.t(g), &kernel, &mut k);
+            let (o, d) = (&self.origin, &line.direction);
+            self.gp
+                .sweep_column(o, d, line.grid_t(g), g, &kernel, &mut sweep, &mut k);
+            if g == at_origin {
+                // The grid point moved onto the origin: its column from the points.
+                self.gp.column_on_line(o, d, 0.0, &kernel, &mut k);
+            }
             let (mean, sd) = if variance {
                 let (mean, variance) = self.gp.posterior(&mut k, &kernel);
                 (mean, Some(libm::sqrtf(variance)))
@@ -520,9 +531,9 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
             return false;
         }
         let (tg, (lower_g, _)) = (line.t(g), self.bounds_at(g));
-        let mut vg = self
-            .gp
-            .column_on_line(&self.origin, &line.direction, tg, &kernel);
+        let mut vg = SVector::zeros();
+        self.gp
+            .column_on_line(&self.origin, &line.direction, tg, &kernel, &mut vg);
         let (mean_g, var_g) = self.gp.posterior(&mut vg, &kernel);
         edges.iter().flatten().any(|e| {
             let dt = tg - e.t;
@@ -538,16 +549,16 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     fn edge(&self, line: &Line<N>, e: usize) -> Edge<M> {
         let kernel = self.config.kernel();
         let t = line.t(e);
-        let mut white = self
-            .gp
-            .column_on_line(&self.origin, &line.direction, t, &kernel);
-        let (mean, variance) = self.gp.posterior(&mut white, &kernel);
-        Edge {
+        let mut edge = Edge {
             t,
-            mean,
-            variance,
-            white,
-        }
+            mean: 0.0,
+            variance: 0.0,
+            white: SVector::zeros(),
+        };
+        self.gp
+            .column_on_line(&self.origin, &line.direction, t, &kernel, &mut edge.white);
+        (edge.mean, edge.variance) = self.gp.posterior(&mut edge.white, &kernel);
+        edge
     }
 
     /// Ends the line: the next origin is the posterior mean's minimiser on it (within the
