@@ -75,7 +75,9 @@ pub(crate) struct Gp<const N: usize, const M: usize> {
 /// most the power `BLOCK` − 1 (a relative error of about 10⁻⁶ at worst, against the
 /// rounding of ‖o − x‖² + t(2dᵀ(o − x) + t) before, which grows with w‖o − x‖²). Where a product could
 /// leave f32's normal range (an e_i below 10⁻³⁰, or a table entry below e⁻⁸⁰ when the
-/// grid is coarse against the length scale) the kernel is computed directly instead.
+/// grid is coarse against the length scale) the kernel is computed directly instead, and
+/// where it stays below 10⁻³⁰ σ_f² over a whole block (an episode far from the line) it
+/// is taken as 0 there: an absolute difference below 10⁻³⁰ σ_f².
 pub(crate) struct Sweep<const M: usize> {
     /// e_i r_iʲ for the current j, or −1 where the kernel is computed directly.
     carry: [f32; M],
@@ -158,7 +160,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         };
         let Some(row) = rest.get_mut(..M) else { return };
         for (k, p) in row.iter_mut().zip(&self.points).take(n) {
-            *k = kernel.at((p - x).norm_squared());
+            *k = kernel.at(distance2(p, x));
         }
         forward::<M>(done, row, n);
         let (left, diagonal) = row.split_at_mut(n);
@@ -230,7 +232,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         let a = self.factor.as_mut_slice();
         for (i, (row, pi)) in a.chunks_exact_mut(M).zip(&self.points).enumerate().take(n) {
             for (j, (f, pj)) in row.iter_mut().zip(&self.points).enumerate().take(i + 1) {
-                *f = kernel.at((pi - pj).norm_squared()) + if i == j { kernel.noise } else { 0.0 };
+                *f = kernel.at(distance2(pi, pj)) + if i == j { kernel.noise } else { 0.0 };
             }
         }
         for i in 0..n {
@@ -266,14 +268,19 @@ impl<const N: usize, const M: usize> Gp<N, M> {
     }
 
     fn distance2(&self, i: usize, x: &Vector<N>) -> f32 {
-        self.points.get(i).map_or(0.0, |p| (p - x).norm_squared())
+        self.points.get(i).map_or(0.0, |p| distance2(p, x))
     }
 
     /// k(x_i, x) for the live points, 0 beyond.
     pub(crate) fn kernel_column(&self, x: &Vector<N>, kernel: &Kernel) -> SVector<f32, M> {
         let mut k = SVector::<f32, M>::zeros();
-        for (k, p) in k.iter_mut().zip(&self.points).take(self.len.min(M)) {
-            *k = kernel.at((p - x).norm_squared());
+        for (k, p) in k
+            .as_mut_slice()
+            .iter_mut()
+            .zip(&self.points)
+            .take(self.len.min(M))
+        {
+            *k = kernel.at(distance2(p, x));
         }
         k
     }
@@ -311,7 +318,8 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         kernel: &Kernel,
         k: &mut SVector<f32, M>,
     ) {
-        for (point, k) in self.points.iter().zip(k.iter_mut()).take(self.len.min(M)) {
+        let column = k.as_mut_slice().iter_mut();
+        for (point, k) in self.points.iter().zip(column).take(self.len.min(M)) {
             *k = kernel.at(offset_on_line(origin, direction, t, point).0);
         }
     }
@@ -334,7 +342,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         let factor = sweep.table.get(j).copied().unwrap_or(0.0);
         let step = sweep.step;
         let w = kernel.inverse_width;
-        let entries = k.iter_mut().zip(&self.points);
+        let entries = k.as_mut_slice().iter_mut().zip(&self.points);
         let state = sweep.carry.iter_mut().zip(sweep.ratio.iter_mut());
         for ((k, point), (carry, ratio)) in entries.zip(state).take(live) {
             if j != 0 && *carry >= 0.0 {
@@ -343,16 +351,32 @@ impl<const N: usize, const M: usize> Gp<N, M> {
                 continue;
             }
             let (d2, along) = offset_on_line(origin, direction, t, point);
-            let e = libm::expf(-d2.max(0.0) * w);
+            let exponent = -d2.max(0.0) * w;
+            let e = libm::expf(exponent);
             *k = kernel.signal * e;
-            if j == 0 {
-                // The start of a block: e and r from the point, or the direct way to its end.
-                (*carry, *ratio) = if sweep.recur && e >= 1e-30 {
-                    (e, libm::expf(-w * step * (2.0 * along + step)))
+            if j != 0 {
+                continue;
+            }
+            // The start of a block: e and r from the point; zeros where the kernel stays
+            // below 10⁻³⁰ σ_f² over the whole block; else, where e is that small, the
+            // direct way to the block's end.
+            let log_ratio = -w * step * (2.0 * along + step);
+            (*carry, *ratio) = if !sweep.recur {
+                (-1.0, 0.0)
+            } else if e >= 1e-30 {
+                (e, libm::expf(log_ratio))
+            } else {
+                let curvature = w * step * step;
+                let peak = (1..BLOCK).fold(exponent, |m, j| {
+                    let j = j as f32;
+                    m.max(exponent + j * log_ratio - curvature * j * (j - 1.0))
+                });
+                if peak < -69.1 {
+                    (0.0, 0.0)
                 } else {
                     (-1.0, 0.0)
-                };
-            }
+                }
+            };
         }
     }
 
@@ -385,12 +409,24 @@ fn offset_on_line<const N: usize>(
     x: &Vector<N>,
 ) -> (f32, f32) {
     let (mut d2, mut along) = (0.0, 0.0);
-    for ((o, x), d) in origin.iter().zip(x.iter()).zip(direction.iter()) {
+    // Through slices: nalgebra's iterators over a vector cost about five times as many
+    // instructions per entry in the firmware's size-optimised build.
+    let (origin, x, direction) = (origin.as_slice(), x.as_slice(), direction.as_slice());
+    for ((o, x), d) in origin.iter().zip(x).zip(direction) {
         let offset = o + t * d - x;
         d2 += offset * offset;
         along += d * offset;
     }
     (d2, along)
+}
+
+/// ‖a − b‖², through slices (see [`offset_on_line`]).
+fn distance2<const N: usize>(a: &Vector<N>, b: &Vector<N>) -> f32 {
+    let mut sum = 0.0;
+    for (a, b) in a.as_slice().iter().zip(b.as_slice()) {
+        sum += (a - b) * (a - b);
+    }
+    sum
 }
 
 /// x ← L⁻¹x on the first `n` entries of `x`, for the row-stored factor whose rows 0..n
@@ -432,26 +468,20 @@ fn live<const M: usize>(v: &SVector<f32, M>, n: usize) -> &[f32] {
     all.get(..n).unwrap_or(all)
 }
 
-/// aᵀb over the shorter of the two, summed in the order of nalgebra's `dot` for vectors of
-/// run-time length (eight interleaved partial sums, then the rest), so that the results
-/// are bit-identical to `rows(0, n).dot(..)`; written out because that `dot` asserts the
-/// shapes match, a panic path the compiler keeps where it does not inline the call.
+/// aᵀb over the shorter of the two (of one length here), in four interleaved partial
+/// sums, so that the firmware's size-optimised build keeps them in registers (a loop over
+/// an array of sums there loads and stores each one per term: about 11 instructions per
+/// multiply-add against 4).
 fn dot(a: &[f32], b: &[f32]) -> f32 {
-    let mut acc = [0.0f32; 8];
-    let (chunks_a, chunks_b) = (a.chunks_exact(8), b.chunks_exact(8));
-    // Slices of one length (always the case here) leave remainders of one length.
-    let (rest_a, rest_b) = (chunks_a.remainder(), chunks_b.remainder());
-    for (x, y) in chunks_a.zip(chunks_b) {
-        for ((acc, x), y) in acc.iter_mut().zip(x).zip(y) {
-            *acc += x * y;
-        }
+    let ((quads_a, rest_a), (quads_b, rest_b)) = (a.as_chunks::<4>(), b.as_chunks::<4>());
+    let (mut s0, mut s1, mut s2, mut s3) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    for ([a0, a1, a2, a3], [b0, b1, b2, b3]) in quads_a.iter().zip(quads_b) {
+        s0 += a0 * b0;
+        s1 += a1 * b1;
+        s2 += a2 * b2;
+        s3 += a3 * b3;
     }
-    let [a0, a1, a2, a3, a4, a5, a6, a7] = acc;
-    let mut sum = 0.0;
-    sum += a0 + a4;
-    sum += a1 + a5;
-    sum += a2 + a6;
-    sum += a3 + a7;
+    let mut sum = (s0 + s2) + (s1 + s3);
     for (x, y) in rest_a.iter().zip(rest_b) {
         sum += x * y;
     }
