@@ -78,11 +78,11 @@ pub(crate) struct Gp<const N: usize, const M: usize> {
 /// grid is coarse against the length scale) the kernel is computed directly instead, and
 /// where it stays below 10⁻³⁰ σ_f² over a whole block (an episode far from the line) it
 /// is taken as 0 there: an absolute difference below 10⁻³⁰ σ_f².
-pub(crate) struct Sweep<const M: usize> {
+pub(crate) struct Sweep<'a, const M: usize> {
     /// e_i r_iʲ for the current j, or −1 where the kernel is computed directly.
-    carry: [f32; M],
+    carry: &'a mut SVector<f32, M>,
     /// r_i.
-    ratio: [f32; M],
+    ratio: &'a mut SVector<f32, M>,
     /// σ_f² exp(−wΔ² j(j − 1)), j < [`BLOCK`].
     table: [f32; BLOCK],
     /// Whether the table is usable (else every entry is computed directly).
@@ -91,9 +91,15 @@ pub(crate) struct Sweep<const M: usize> {
     step: f32,
 }
 
-impl<const M: usize> Sweep<M> {
-    /// A sweep along a grid of spacing `step`, under `kernel`.
-    pub(crate) fn new(step: f32, kernel: &Kernel) -> Self {
+impl<'a, const M: usize> Sweep<'a, M> {
+    /// A sweep along a grid of spacing `step`, under `kernel`, keeping its per-episode
+    /// state in `carry` and `ratio` (the optimizer's scratch, not the stack).
+    pub(crate) fn new(
+        step: f32,
+        kernel: &Kernel,
+        carry: &'a mut SVector<f32, M>,
+        ratio: &'a mut SVector<f32, M>,
+    ) -> Self {
         let exponent = kernel.inverse_width * step * step;
         let last = (BLOCK - 1) as f32 * (BLOCK - 2) as f32;
         let mut table = [0.0; BLOCK];
@@ -101,9 +107,10 @@ impl<const M: usize> Sweep<M> {
             let j = j as f32;
             *entry = kernel.signal * libm::expf(-exponent * j * (j - 1.0));
         }
+        carry.fill(-1.0);
         Self {
-            carry: [-1.0; M],
-            ratio: [0.0; M],
+            carry,
+            ratio,
             table,
             recur: exponent * last <= 80.0 && step.is_finite(),
             step,
@@ -334,7 +341,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         t: f32,
         g: usize,
         kernel: &Kernel,
-        sweep: &mut Sweep<M>,
+        sweep: &mut Sweep<'_, M>,
         k: &mut SVector<f32, M>,
     ) {
         let live = self.len.min(M);
@@ -343,7 +350,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         let step = sweep.step;
         let w = kernel.inverse_width;
         let entries = k.as_mut_slice().iter_mut().zip(&self.points);
-        let state = sweep.carry.iter_mut().zip(sweep.ratio.iter_mut());
+        let state = (sweep.carry.as_mut_slice().iter_mut()).zip(sweep.ratio.as_mut_slice());
         for ((k, point), (carry, ratio)) in entries.zip(state).take(live) {
             if j != 0 && *carry >= 0.0 {
                 *carry *= *ratio;
@@ -665,7 +672,8 @@ mod tests {
                 d /= d.norm();
                 let (t0, step) = (-1.0 + 0.01 * unit_f32(&mut r), 2.0 / 64.0);
                 let old = reference_posterior(&gp, &kern, (&around, &d, t0, step));
-                let mut sweep = Sweep::new(step, &kern);
+                let (mut carry, mut ratio) = (SVector::zeros(), SVector::zeros());
+                let mut sweep = Sweep::new(step, &kern, &mut carry, &mut ratio);
                 let mut k = SVector::<f32, 64>::zeros();
                 for (g, (m0, v0)) in old.iter().enumerate() {
                     let t = t0 + g as f32 * step;
@@ -717,7 +725,8 @@ mod tests {
                 let mut d = crate::random::normal_vector_f32::<5, _>(&mut r);
                 d /= d.norm();
                 let (t0, step) = (-2.0 * unit_f32(&mut r), 4.0 * unit_f32(&mut r) / 64.0);
-                let mut sweep = Sweep::new(step, &kern);
+                let (mut carry, mut ratio) = (SVector::zeros(), SVector::zeros());
+                let mut sweep = Sweep::new(step, &kern, &mut carry, &mut ratio);
                 let mut k = SVector::<f32, 16>::zeros();
                 for g in 0..64 {
                     let t = t0 + g as f32 * step;
