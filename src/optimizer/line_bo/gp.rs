@@ -170,7 +170,7 @@ impl<const N: usize, const M: usize> Gp<N, M> {
             *k = kernel.at(distance2(p, x));
         }
         forward::<M>(done, row, n);
-        let (left, diagonal) = row.split_at_mut(n);
+        let (left, diagonal) = row.split_at_mut_checked(n).unwrap_or((&mut [], &mut []));
         let pivot = kernel.signal + kernel.noise - dot(left, left);
         self.len = n + 1;
         match diagonal.first_mut() {
@@ -251,7 +251,9 @@ impl<const N: usize, const M: usize> Gp<N, M> {
             };
             // Entries left of the diagonal: (K_ij − L_i,<j · L_j,<j) / L_jj.
             forward::<M>(done, row, i);
-            let (left, diagonal) = row.split_at_mut(i);
+            let Some((left, diagonal)) = row.split_at_mut_checked(i) else {
+                return;
+            };
             if let Some(d) = diagonal.first_mut() {
                 let pivot = *d - dot(left, left);
                 let pivot = if pivot >= kernel.noise && pivot.is_finite() {
@@ -454,14 +456,16 @@ fn forward<const M: usize>(rows: &[f32], x: &mut [f32], n: usize) {
 /// x ← L⁻ᵀx on the first `n` entries (back substitution, column by column of Lᵀ: each step
 /// subtracts a multiple of one contiguous row of L).
 fn backward<const M: usize>(rows: &[f32], x: &mut [f32], n: usize) {
-    for (k, row) in rows.chunks_exact(M).enumerate().take(n).rev() {
-        let Some((head, tail)) = x.split_at_mut_checked(k) else {
+    // By index rather than a reversed `chunks_exact`, whose `nth_back` keeps a panic path.
+    for k in (0..n).rev() {
+        let (start, diagonal) = (k * M, rows.get(k * M + k).copied().unwrap_or(1.0));
+        let (Some(left), Some((head, tail))) =
+            (rows.get(start..start + k), x.split_at_mut_checked(k))
+        else {
             return;
         };
-        let (Some(xk), Some((left, diagonal))) = (tail.first_mut(), row.split_at_checked(k)) else {
-            return;
-        };
-        *xk /= diagonal.first().copied().unwrap_or(1.0);
+        let Some(xk) = tail.first_mut() else { return };
+        *xk /= diagonal;
         let v = *xk;
         for (h, l) in head.iter_mut().zip(left) {
             *h -= l * v;
