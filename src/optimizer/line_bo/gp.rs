@@ -221,12 +221,11 @@ impl<const N: usize, const M: usize> Gp<N, M> {
                     *e = v;
                 }
             }
-            if let (Some(&x), Some(&r)) = (self.points.get(i), self.residuals.get(i)) {
-                if let (Some(px), Some(pr)) =
+            if let (Some(&x), Some(&r)) = (self.points.get(i), self.residuals.get(i))
+                && let (Some(px), Some(pr)) =
                     (self.points.get_mut(i - 1), self.residuals.get_mut(i - 1))
-                {
-                    (*px, *pr) = (x, r);
-                }
+            {
+                (*px, *pr) = (x, r);
             }
         }
         self.len = n - 1;
@@ -333,13 +332,12 @@ impl<const N: usize, const M: usize> Gp<N, M> {
         }
     }
 
-    /// Writes the kernel column of grid point g = g₀ + j of the sweep into the first
-    /// entries of `k`, where `t` is the grid's t_g and j = g mod [`BLOCK`]; the grid
+    /// Writes the kernel column of grid point g = g₀ + j of the sweep along the line
+    /// (o, d) into the first entries of `k`, where `t` is the grid's t_g and j = g mod [`BLOCK`]; the grid
     /// points must come in order, g = 0, 1, 2, … ([`Sweep`]).
     pub(crate) fn sweep_column(
         &self,
-        origin: &Vector<N>,
-        direction: &Vector<N>,
+        (origin, direction): (&Vector<N>, &Vector<N>),
         t: f32,
         g: usize,
         kernel: &Kernel,
@@ -681,7 +679,7 @@ mod tests {
                 let mut k = SVector::<f32, 64>::zeros();
                 for (g, (m0, v0)) in old.iter().enumerate() {
                     let t = t0 + g as f32 * step;
-                    gp.sweep_column(&around, &d, t, g, &kern, &mut sweep, &mut k);
+                    gp.sweep_column((&around, &d), t, g, &kern, &mut sweep, &mut k);
                     let (m1, v1) = gp.posterior(&mut k, &kern);
                     worst_mean = worst_mean.max((m1 - m0).abs() / sigma);
                     worst_var = worst_var.max((v1 - v0).abs() / (sigma * sigma));
@@ -734,7 +732,7 @@ mod tests {
                 let mut k = SVector::<f32, 16>::zeros();
                 for g in 0..64 {
                     let t = t0 + g as f32 * step;
-                    gp.sweep_column(&o, &d, t, g, &kern, &mut sweep, &mut k);
+                    gp.sweep_column((&o, &d), t, g, &kern, &mut sweep, &mut k);
                     for (i, p) in gp.points.iter().enumerate() {
                         let d2: f64 = (0..5)
                             .map(|c| {
