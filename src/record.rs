@@ -753,7 +753,7 @@ mod tests {
         use alloc::string::ToString;
         assert_eq!(
             RecordError::Version { found: 1 }.to_string(),
-            "the record has format version 1, this build reads 5"
+            "the record has format version 1, this build reads 6"
         );
     }
 
