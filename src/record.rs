@@ -56,8 +56,9 @@ use serde::de::DeserializeOwned;
 use crate::error::Error;
 
 /// The version of the record layout and of every type's encoding. It changes whenever a
-/// saved field is added, removed or reordered: a record of another version is refused.
-pub const FORMAT_VERSION: u16 = 5;
+/// saved field is added, removed or reordered, or changes its meaning (6: `LineBo`'s
+/// Cholesky factor is saved by rows): a record of another version is refused.
+pub const FORMAT_VERSION: u16 = 6;
 
 /// The most words a [`Shape`] holds (a compile-time error beyond).
 pub const SHAPE_CAPACITY: usize = 32;
@@ -761,7 +762,7 @@ mod tests {
         use alloc::string::ToString;
         assert_eq!(
             RecordError::Version { found: 1 }.to_string(),
-            "the record has format version 1, this build reads 5"
+            "the record has format version 1, this build reads 6"
         );
     }
 

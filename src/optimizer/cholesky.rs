@@ -1,6 +1,7 @@
-//! The Cholesky factorisation and the triangular solves of ROCK* and of the line search's
-//! Gaussian process, on the leading `n × n` block of a fixed-size matrix (a GP holds a
-//! varying number of points in a matrix sized for its capacity).
+//! The Cholesky factorisation and the forward substitution of ROCK*, on the leading `n × n`
+//! block of a fixed-size matrix (a model that holds a varying number of points in a matrix
+//! sized for its capacity). LineBO's Gaussian process keeps its factor by rows and has
+//! its own (`line_bo/gp.rs`).
 //!
 //! Written out rather than taken from nalgebra's decompositions, whose panic sites LLVM does
 //! not always remove (see [`Cmaes`](super::Cmaes)), and because nalgebra's `Cholesky` of
@@ -92,36 +93,12 @@ pub(crate) fn solve_lower<const M: usize>(
     }
 }
 
-/// x ← L⁻ᵀ x on the first `n` entries (as [`solve_lower`], by back substitution: Lᵀ's row
-/// i is L's column i, contiguous).
-pub(crate) fn solve_lower_transposed<const M: usize>(
-    l: &SMatrix<f32, M, M>,
-    x: &mut SVector<f32, M>,
-    n: usize,
-) {
-    let n = n.min(M);
-    let a = l.as_slice();
-    let x = x.as_mut_slice();
-    for i in (0..n).rev() {
-        let Some((head, solved)) = x.split_at_mut_checked(i + 1) else {
-            return;
-        };
-        let Some(xi) = head.last_mut() else { return };
-        let mut v = *xi;
-        let column = a.get(i * M + i + 1..i * M + n).unwrap_or(&[]);
-        for (l, x) in column.iter().zip(solved.iter()) {
-            v -= l * x;
-        }
-        *xi = v / a.get(i + i * M).copied().unwrap_or(1.0);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// Checks, on a 3 × 3 positive-definite block inside a 5 × 5 matrix: L Lᵀ reproduces
-    /// the block, L⁻¹ and L⁻ᵀ invert it, the entries outside the block are untouched, and a
+    /// the block, L⁻¹ inverts L, the entries outside the block are untouched, and a
     /// singular block fails without a floor and is completed with one.
     #[test]
     fn factor_and_solves_on_the_leading_block() {
@@ -135,9 +112,8 @@ mod tests {
         let mut x = SVector::<f32, 5>::new(1.0, -2.0, 0.5, 9.0, 9.0);
         let b = x;
         solve_lower(&m, &mut x, 3);
-        solve_lower_transposed(&m, &mut x, 3);
-        let ax = a * x.fixed_rows::<3>(0);
-        assert!((ax - b.fixed_rows::<3>(0)).abs().max() < 1e-5);
+        let lx = l * x.fixed_rows::<3>(0);
+        assert!((lx - b.fixed_rows::<3>(0)).abs().max() < 1e-5);
         assert_eq!((x[3], x[4]), (9.0, 9.0));
 
         let mut singular = SMatrix::<f32, 2, 2>::repeat(1.0);

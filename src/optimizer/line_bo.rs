@@ -96,16 +96,32 @@
 //! * **Appending** a point costs one forward substitution, O(n²): the new row of L is
 //!   L⁻¹k(X, x) and its pivot the Schur complement k(x, x) + σ² − ‖L⁻¹k‖². A pivot that
 //!   rounding has pushed below half its theoretical floor σ² triggers a refactorisation
-//!   from the kernel matrix, O(n³/6), in which any pivot below σ² is replaced by σ².
+//!   from the kernel matrix, O(n³/6), in which any pivot below σ² is replaced by σ². L is
+//!   stored by rows, so that the forward substitution of every posterior (one per grid
+//!   point) reads contiguous memory.
 //! * **Eviction.** With `M` points held, the point least correlated with the point the
 //!   search is working around (the current line's origin), that is the farthest from it in
-//!   the kernel's metric, is dropped, and L is refactored. Near points decide the line the
+//!   the kernel's metric, is dropped: its row and column leave L, and the block below
+//!   absorbs its column by a rank-one update (rotations that only raise the pivots), O(n²)
+//!   instead of a refactorisation's O(n³); the factor is that of the kept points up to
+//!   rounding. Near points decide the line the
 //!   search works on; a far point adds almost nothing there, and in the safe variant
 //!   dropping it only widens the confidence intervals around the line, which shrinks the
 //!   safe set rather than grows it (up to its small pull on the mean).
 //! * **Extreme costs.** A residual (cost − prior mean) is clipped to ±10⁶ σ_f in the model
 //!   (the optimizer's best keeps the true cost), so any finite f32 cost keeps the weights
 //!   K⁻¹y finite.
+//! * **Kernel along the grid** (a numerical deviation, not a modelling one). On the evenly
+//!   spaced grid t_g = t₀ + gΔ, ‖o + t_g d − x_i‖² is a quadratic in g whose g²
+//!   coefficient Δ² is the same for every remembered x_i, so the kernel values along the
+//!   line are e_i r_iʲ exp(−wΔ² j(j − 1)) from a block's start: two `expf` per episode
+//!   every 8 grid points and a multiplication in between, instead of one `expf` per grid
+//!   point and episode. Each block restarts from the kernel computed directly; the values
+//!   differ from it by a relative 10⁻⁶ at most (about 2·8 + 4 roundings), those below
+//!   10⁻³⁰ σ_f² over a whole block are taken as 0, and the posterior means and variances
+//!   on a line then equal a refactorised model's computed point by point within 10⁻⁵ σ_f
+//!   and 10⁻⁵ σ_f² (a test, on random data). The grid point moved onto the origin is
+//!   computed directly.
 
 pub(crate) mod gp;
 
@@ -263,6 +279,12 @@ impl<const N: usize> Line<N> {
         if g == self.origin_index() {
             return 0.0;
         }
+        self.grid_t(g)
+    }
+
+    /// t of grid point `g` of the evenly spaced grid, before the origin's index is moved
+    /// onto t = 0.
+    fn grid_t(&self, g: usize) -> f32 {
         let fraction = (g as f32 + self.offset) / GRID as f32;
         self.lower + fraction * (self.upper - self.lower)
     }
@@ -278,8 +300,10 @@ struct Posterior {
 }
 
 /// LineBO with an optional SafeOpt threshold (module docs), remembering `M` episodes in
-/// its Gaussian process: about 4·M² + 4·M·n bytes (22 768 B at n = 18 with M = 64, the
-/// recommended capacity there; 26 568 B at n = 31, 17 288 B with M = 48).
+/// its Gaussian process: about 4·M² + 4·M·n + 12·M bytes (23 536 B at n = 18 with M = 64,
+/// the recommended capacity there; 27 336 B at n = 31, 17 864 B with M = 48), three
+/// columns of M floats of them the working space of the posterior pass, so that the
+/// stack it needs beyond the state stays within 2 KB.
 ///
 /// ```
 /// use ctrl_adapt::optimizer::{Bounds, LineBo, LineBoConfig, Optimizer};
@@ -326,6 +350,51 @@ pub struct LineBo<const N: usize, const M: usize> {
     posterior: Posterior,
     gp: Gp<N, M>,
     ledger: Ledger<N>,
+    /// Working columns, no state: not saved (a decoded search starts with zeros).
+    #[cfg_attr(feature = "serde", serde(skip))]
+    scratch: Scratch<M>,
+}
+
+/// The working columns of the posterior pass ([`LineBo::refresh`]: the sweep's two
+/// per-episode arrays and the kernel column) and of the expander test (the two edges'
+/// L⁻¹k and the candidate's), in the state rather than on the stack: a
+/// microcontroller's RAM bounds state and stack together, and three columns of M floats
+/// in the deepest frame are what took the stack past the state + 2 KB that every
+/// optimizer keeps to. They carry nothing from one call to the next, so two searches that
+/// differ only in them are equal, and they are neither saved nor logged.
+#[derive(Debug, Clone, Copy)]
+struct Scratch<const M: usize> {
+    first: SVector<f32, M>,
+    second: SVector<f32, M>,
+    column: SVector<f32, M>,
+}
+
+impl<const M: usize> Scratch<M> {
+    const ZERO: Self = Self {
+        first: SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; M]; 1])),
+        second: SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; M]; 1])),
+        column: SVector::from_array_storage(nalgebra::ArrayStorage([[0.0; M]; 1])),
+    };
+}
+
+impl<const M: usize> Default for Scratch<M> {
+    fn default() -> Self {
+        Self::ZERO
+    }
+}
+
+impl<const M: usize> PartialEq for Scratch<M> {
+    /// Always: the columns hold no state.
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+#[cfg(feature = "defmt")]
+impl<const M: usize> defmt::Format for Scratch<M> {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(f, "Scratch")
+    }
 }
 
 impl<const N: usize, const M: usize> LineBo<N, M> {
@@ -357,6 +426,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
             },
             gp: Gp::EMPTY,
             ledger: Ledger::new(config.max_evaluations),
+            scratch: Scratch::ZERO,
         })
     }
 
@@ -398,17 +468,27 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     fn refresh(&mut self, variance: bool) {
         let Some(line) = self.line else { return };
         let kernel = self.config.kernel();
-        let mut terms = gp::LineTerms::ZERO;
-        self.gp
-            .line_terms(&self.origin, &line.direction, &mut terms);
-        let mut k = SVector::<f32, M>::zeros();
+        let Scratch {
+            first,
+            second,
+            column: k,
+        } = &mut self.scratch;
+        let step = (line.upper - line.lower) / GRID as f32;
+        let mut sweep = gp::Sweep::new(step, &kernel, first, second);
+        let at_origin = line.origin_index();
         for g in 0..GRID {
-            self.gp.line_column(&terms, line.t(g), &kernel, &mut k);
+            let (o, d) = (&self.origin, &line.direction);
+            self.gp
+                .sweep_column((o, d), line.grid_t(g), g, &kernel, &mut sweep, k);
+            if g == at_origin {
+                // The grid point moved onto the origin: its column from the points.
+                self.gp.column_on_line(o, d, 0.0, &kernel, k);
+            }
             let (mean, sd) = if variance {
-                let (mean, variance) = self.gp.posterior(&mut k, &kernel);
+                let (mean, variance) = self.gp.posterior(k, &kernel);
                 (mean, Some(libm::sqrtf(variance)))
             } else {
-                (self.gp.mean(&k), None)
+                (self.gp.mean(k), None)
             };
             if let Some(m) = self.posterior.mean.get_mut(g) {
                 *m = mean;
@@ -421,10 +501,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
 
     /// l and u at grid point `g` (NaN off the grid).
     fn bounds_at(&self, g: usize) -> (f32, f32) {
-        let mean = self.posterior.mean.get(g).copied().unwrap_or(f32::NAN);
-        let sd = self.posterior.sd.get(g).copied().unwrap_or(f32::NAN);
-        let half = self.config.beta * sd;
-        (mean - half, mean + half)
+        bounds_at(&self.posterior, self.config.beta, g)
     }
 
     /// u − l at `g`, NaN counted as 0.
@@ -459,7 +536,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     /// the safe set is empty. Out of line, so that its vectors (the edges' L⁻¹k) and those
     /// of the posterior pass in [`Self::refresh`] never share one stack frame.
     #[inline(never)]
-    fn choose(&self, line: &Line<N>) -> Option<usize> {
+    fn choose(&mut self, line: &Line<N>) -> Option<usize> {
         let Some(h) = self.config.threshold else {
             return Some(argmin(0..GRID, |g| self.bounds_at(g).0));
         };
@@ -467,7 +544,8 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         let best_upper = (lo..=hi)
             .map(|g| self.bounds_at(g).1)
             .fold(f32::INFINITY, f32::min);
-        let minimisers = || (lo..=hi).filter(move |&g| self.bounds_at(g).0 <= best_upper);
+        let view = &*self;
+        let minimisers = || (lo..=hi).filter(move |&g| view.bounds_at(g).0 <= best_upper);
         let widest = argmin(minimisers(), |g| -self.width(g));
         let widest = if minimisers().any(|g| g == widest) {
             widest
@@ -506,52 +584,34 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         if count == 0 {
             return Some(widest);
         }
-        let edges = [lo.checked_sub(1), (hi + 1 < GRID).then_some(hi + 1)]
-            .map(|e| e.map(|e| self.edge(line, e)));
+        // The edges' L⁻¹k in the scratch's first two columns, the candidate's in the third.
+        let kernel = self.config.kernel();
+        let Scratch {
+            first,
+            second,
+            column,
+        } = &mut self.scratch;
+        let edges = [
+            lo.checked_sub(1)
+                .map(|e| edge(&self.gp, &kernel, &self.origin, line, e, first)),
+            (hi + 1 < GRID).then(|| edge(&self.gp, &kernel, &self.origin, line, hi + 1, second)),
+        ];
+        let whites = [&*first, &*second];
         for &g in order.iter().take(count) {
-            if self.expands(line, usize::from(g), &edges, h) {
-                return Some(usize::from(g));
+            let g = usize::from(g);
+            let (lower, _) = bounds_at(&self.posterior, self.config.beta, g);
+            let test = Expansion {
+                gp: &self.gp,
+                kernel: &kernel,
+                beta: self.config.beta,
+                origin: &self.origin,
+                line,
+            };
+            if test.expands(g, lower, &edges, whites, column, h) {
+                return Some(g);
             }
         }
         Some(widest)
-    }
-
-    /// Whether a fictitious observation of l(x_g) at grid point `g` would bring the upper
-    /// bound of one of the unsafe `edges` to ≤ h.
-    fn expands(&self, line: &Line<N>, g: usize, edges: &[Option<Edge<M>>; 2], h: f32) -> bool {
-        let kernel = self.config.kernel();
-        if edges.iter().all(Option::is_none) {
-            return false;
-        }
-        let (tg, (lower_g, _)) = (line.t(g), self.bounds_at(g));
-        let mut vg = self
-            .gp
-            .column_on_line(&self.origin, &line.direction, tg, &kernel);
-        let (mean_g, var_g) = self.gp.posterior(&mut vg, &kernel);
-        edges.iter().flatten().any(|e| {
-            let dt = tg - e.t;
-            let cov = self.gp.covariance(kernel.at(dt * dt), &vg, &e.white);
-            let gain = cov / (var_g + kernel.noise);
-            let mean = e.mean + gain * (lower_g - mean_g);
-            let var = (e.variance - gain * cov).max(0.0);
-            mean + self.config.beta * libm::sqrtf(var) <= h
-        })
-    }
-
-    /// The posterior at the unsafe grid point `e` next to the safe set, for [`Self::expands`].
-    fn edge(&self, line: &Line<N>, e: usize) -> Edge<M> {
-        let kernel = self.config.kernel();
-        let t = line.t(e);
-        let mut white = self
-            .gp
-            .column_on_line(&self.origin, &line.direction, t, &kernel);
-        let (mean, variance) = self.gp.posterior(&mut white, &kernel);
-        Edge {
-            t,
-            mean,
-            variance,
-            white,
-        }
     }
 
     /// Ends the line: the next origin is the posterior mean's minimiser on it (within the
@@ -603,13 +663,77 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     }
 }
 
-/// An unsafe grid point next to the safe set: its t, posterior mean and variance, and L⁻¹k
-/// (shared by the expander tests).
-struct Edge<const M: usize> {
+/// l and u at grid point `g` of `posterior` (NaN off the grid).
+fn bounds_at(posterior: &Posterior, beta: f32, g: usize) -> (f32, f32) {
+    let mean = posterior.mean.get(g).copied().unwrap_or(f32::NAN);
+    let sd = posterior.sd.get(g).copied().unwrap_or(f32::NAN);
+    let half = beta * sd;
+    (mean - half, mean + half)
+}
+
+/// An unsafe grid point next to the safe set: its t, posterior mean and variance (its
+/// L⁻¹k is in the scratch, shared by the expander tests).
+struct Edge {
     t: f32,
     mean: f32,
     variance: f32,
-    white: SVector<f32, M>,
+}
+
+/// The posterior at the unsafe grid point `e` next to the safe set, for
+/// [`Expansion::expands`], its L⁻¹k written to `white`.
+fn edge<const N: usize, const M: usize>(
+    gp: &Gp<N, M>,
+    kernel: &Kernel,
+    origin: &Vector<N>,
+    line: &Line<N>,
+    e: usize,
+    white: &mut SVector<f32, M>,
+) -> Edge {
+    let t = line.t(e);
+    gp.column_on_line(origin, &line.direction, t, kernel, white);
+    let (mean, variance) = gp.posterior(white, kernel);
+    Edge { t, mean, variance }
+}
+
+/// What the expander test reads of the search (borrowed apart from its scratch).
+struct Expansion<'a, const N: usize, const M: usize> {
+    gp: &'a Gp<N, M>,
+    kernel: &'a Kernel,
+    beta: f32,
+    origin: &'a Vector<N>,
+    line: &'a Line<N>,
+}
+
+impl<const N: usize, const M: usize> Expansion<'_, N, M> {
+    /// Whether a fictitious observation of l(x_g) = `lower` at grid point `g` would bring
+    /// the upper bound of one of the unsafe `edges` (their L⁻¹k in `whites`) to ≤ h;
+    /// `column` is the candidate's working column.
+    fn expands(
+        &self,
+        g: usize,
+        lower: f32,
+        edges: &[Option<Edge>; 2],
+        whites: [&SVector<f32, M>; 2],
+        column: &mut SVector<f32, M>,
+        h: f32,
+    ) -> bool {
+        if edges.iter().all(Option::is_none) {
+            return false;
+        }
+        let (kernel, tg) = (self.kernel, self.line.t(g));
+        self.gp
+            .column_on_line(self.origin, &self.line.direction, tg, kernel, column);
+        let (mean_g, var_g) = self.gp.posterior(column, kernel);
+        edges.iter().zip(whites).any(|(e, white)| {
+            let Some(e) = e else { return false };
+            let dt = tg - e.t;
+            let cov = self.gp.covariance(kernel.at(dt * dt), column, white);
+            let gain = cov / (var_g + kernel.noise);
+            let mean = e.mean + gain * (lower - mean_g);
+            let var = (e.variance - gain * cov).max(0.0);
+            mean + self.beta * libm::sqrtf(var) <= h
+        })
+    }
 }
 
 /// The index of `values` where `key` is lowest (NaN never wins; the first on ties), or 0.
@@ -678,9 +802,10 @@ impl<const N: usize, const M: usize> Optimizer<N> for LineBo<N, M> {
         if self.line.is_none() {
             self.begin_line(rng);
         }
-        let chosen = self
-            .line
-            .and_then(|line| Some(self.point(&line, self.choose(&line)?)));
+        let chosen = match self.line {
+            Some(line) => self.choose(&line).map(|g| self.point(&line, g)),
+            None => None,
+        };
         let theta = match chosen {
             Some(x) => self.unit.theta_of(&x),
             None => {

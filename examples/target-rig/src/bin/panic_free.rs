@@ -273,7 +273,7 @@ fn cmaes(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
 
 /// LineBO remembering 64 episodes (the recommendation at n = 18), with and without a
 /// threshold, along coordinate and random lines, with configurations the compiler cannot
-/// see, for 100 episodes each (past the GP's capacity: the eviction and refactorisation
+/// see, for 100 episodes each (past the GP's capacity: the eviction and rank-one update
 /// run), and its accessors.
 fn line_bo(rng: &mut Rng, bounds: Bounds<N>) -> u32 {
     let mut told = 0;
