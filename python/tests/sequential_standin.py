@@ -7,6 +7,7 @@ candidate pending in a loaded record is in flight (a record saved after a ``canc
 not say so: no test does that)."""
 
 import ctrl_adapt
+from ctrl_adapt import Optimizer as _Optimizer
 
 
 class SequentialStandIn:
@@ -15,7 +16,7 @@ class SequentialStandIn:
     max_in_flight = 1
 
     def __init__(self, *args, **kwargs):
-        self._opt = ctrl_adapt.Optimizer(*args, **kwargs)
+        self._opt = _Optimizer(*args, **kwargs)
         self._out = None
 
     def suggest(self):
@@ -53,7 +54,7 @@ class SequentialStandIn:
     @classmethod
     def load(cls, record, seed=0):
         self = cls.__new__(cls)
-        self._opt = ctrl_adapt.Optimizer.load(record, seed)
+        self._opt = _Optimizer.load(record, seed)
         self._out = None if self._opt.pending() is None else self._opt.evaluations
         return self
 
