@@ -7,14 +7,20 @@ their costs, several at once where the optimizer allows it (a CMA-ES generation,
 population), never more than its ``max_in_flight``. The optimizer is the firmware's own type,
 so the state the search ends in is a record the board loads (:meth:`CtrlAdaptSearch.write_record`).
 
->>> from ray import tune                                            # doctest: +SKIP
->>> search = CtrlAdaptSearch({"kp": (0.0, 4.0), "kd": (0.0, 1.0)}, algorithm="cmaes",
-...                          start={"kp": 1.0, "kd": 0.1}, seed=1, initial_sigma=0.3,
-...                          metric="cost", mode="min")              # doctest: +SKIP
->>> tuner = tune.Tuner(episode, tune_config=tune.TuneConfig(search_alg=search,
-...                                                         num_samples=200))  # doctest: +SKIP
->>> tuner.fit(); search.write_record("global.rec")                  # doctest: +SKIP
-'Cmaes<2, 6>'
+Example (``episodes`` is your trainable, returning ``{"cost": ...}`` for a config)::
+
+    from ray import tune
+    from ctrl_adapt.tune import CtrlAdaptSearch
+
+    search = CtrlAdaptSearch({"kp": (0.0, 4.0), "kd": (0.0, 1.0)}, algorithm="cmaes",
+                             start={"kp": 1.0, "kd": 0.1}, seed=1, initial_sigma=0.3,
+                             metric="cost", mode="min")
+    tune.Tuner(episodes, tune_config=tune.TuneConfig(
+        search_alg=search, num_samples=200, reuse_actors=True)).fit()
+    search.write_record("global.rec")   # -> "Cmaes<2, 6>", the type the firmware loads
+
+``reuse_actors=True`` keeps Ray's cost per trial at a fraction of a second; without it,
+each trial starts a worker process (seconds).
 
 Failed trials. A trial that raised, or whose result lacks the metric or holds a non-finite
 one (NaN, ±inf, or beyond float32), did not measure its candidate. By default its ticket is
@@ -36,7 +42,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from ray.tune.search import UNDEFINED_METRIC_MODE, UNDEFINED_SEARCH_SPACE, Searcher
-from ray.tune.search.sample import Domain, Float, Uniform
+from ray.tune.search.sample import Float, Uniform
 from ray.tune.search.variant_generator import parse_spec_vars
 from ray.tune.utils.util import unflatten_dict
 
