@@ -15,7 +15,7 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 EXAMPLE = os.path.join(HERE, "..", "examples", "pendulum_pd.py")
 LINE = re.compile(r"^workers: (\d+); trials: (\d+) .*tuning wall time: ([\d.]+) s \(after ([\d.]+) s")
-TUNED = re.compile(r"tuned cost: ([\d.e+-]+)")
+COSTS = re.compile(r"bare PD cost: ([\d.]+) \(survived (\d+) of (\d+) steps\); tuned cost: ([\d.e+-]+)")
 
 
 def run(workers, short, out):
@@ -24,8 +24,9 @@ def run(workers, short, out):
         args.append("--short")
     text = subprocess.run(args, check=True, capture_output=True, text=True).stdout
     found = next(LINE.match(line) for line in text.splitlines() if LINE.match(line))
+    costs = COSTS.search(text)
     return {"trials": int(found[2]), "wall": float(found[3]), "startup": float(found[4]),
-            "tuned": float(TUNED.search(text)[1])}
+            "bare": costs[2], "steps": costs[3], "tuned": costs[4]}
 
 
 def main():
@@ -38,8 +39,9 @@ def main():
     print("| Ray workers | trials | tuning wall time (s) | Ray start-up (s) | tuned cost |")
     print("| ---: | ---: | ---: | ---: | ---: |")
     for workers, r in runs.items():
-        print(f"| {workers} | {r['trials']} | {r['wall']:.1f} | {r['startup']:.1f} | {r['tuned']:.4f} |")
+        print(f"| {workers} | {r['trials']} | {r['wall']:.1f} | {r['startup']:.1f} | {r['tuned']} |")
     print(f"\nspeed-up with 2 workers: {runs[1]['wall'] / runs[2]['wall']:.2f}x")
+    print(f"bare PD: survived {runs[1]['bare']} of {runs[1]['steps']} steps")
 
 
 if __name__ == "__main__":
