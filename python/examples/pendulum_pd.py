@@ -22,7 +22,7 @@ time where workers are free. At the end the optimizer's state is written as a re
 Rust type (``Cmaes<3, 7>``), which the firmware loads with ``ctrl_adapt::record::load`` and
 continues from (the board's own episodes then count), and the learning curve is plotted.
 
-    python python/examples/pendulum_pd.py            # 140 trials of 2 × 1,000 steps
+    python python/examples/pendulum_pd.py            # 98 trials of 4 × 1,000 steps
     python python/examples/pendulum_pd.py --short    # 28 trials of 1 × 300 steps (CI)
 
 Options: ``--workers N`` (Ray CPUs, default 2), ``--out DIR`` (default
@@ -106,7 +106,13 @@ def main(argv=None):
     p.add_argument("--out", default=os.path.join("target", "pendulum-pd"))
     p.add_argument("--seed", type=int, default=1)
     a = p.parse_args(argv)
-    trials, steps, initial_states = (28, 300, [0]) if a.short else (140, 1000, [0, 1])
+    if "TUNE_MAX_PENDING_TRIALS_PG" not in os.environ:
+        # Tune keeps one trial pending for a searcher by default, and then ran every trial
+        # on one worker here; one pending per worker lets a generation use them all. Set in
+        # the process's own environment it did not take effect, so start again with it.
+        env = dict(os.environ, TUNE_MAX_PENDING_TRIALS_PG=str(a.workers))
+        os.execve(sys.executable, [sys.executable, os.path.abspath(__file__)] + list(argv or sys.argv[1:]), env)
+    trials, steps, initial_states = (28, 300, [0]) if a.short else (98, 1000, [0, 1, 2, 3])
     os.makedirs(a.out, exist_ok=True)
     print(f"command: python {' '.join([os.path.relpath(sys.argv[0])] + list(argv or sys.argv[1:]))}")
 

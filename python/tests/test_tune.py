@@ -53,9 +53,9 @@ def test_a_configuration_names_the_candidate_and_keeps_constants():
     s = CtrlAdaptSearch({"gains": {"kp": (0.0, 2.0)}, "kd": (0.0, 1.0), "steps": 200},
                         optimizer=InFlight("coordinate", np.zeros(2), np.array([2.0, 1.0])),
                         metric="cost", mode="min")
+    theta = s.optimizer.copy().ask()  # the candidate the first suggest hands out
     config = s.suggest("t0")
     assert s.parameter_names == ["gains/kp", "kd"]  # the space's order is the vector's
-    theta = s.optimizer.pending()
     assert config == {"gains": {"kp": theta[0]}, "kd": theta[1], "steps": 200}
 
 
@@ -154,10 +154,18 @@ def test_the_written_record_is_the_firmware_types_state(tmp_path):
     for i in range(20):
         s.on_trial_complete(f"t{i}", {"cost": quadratic(s.suggest(f"t{i}"))})
     path = tmp_path / "best.rec"
+    s.suggest("t20")  # in flight: not a record for the firmware yet
+    with pytest.raises(ValueError, match="in flight"):
+        s.write_record(path)
+    assert not path.exists()
+    s.on_trial_complete("t20", None, error=True)  # cancelled: it waits to be handed out again
+    with pytest.raises(ValueError, match="cancelled candidate"):
+        s.write_record(path)
+    s.on_trial_complete("t21", {"cost": quadratic(s.suggest("t21"))})
     rust_type = s.write_record(path)
     assert rust_type == "Cmaes<3, 7>"
     loaded = ctrl_adapt.Optimizer.load(path.read_bytes())
-    assert loaded.evaluations == 20 and loaded.best()[1] == s.optimizer.best()[1]
+    assert loaded.evaluations == 21 and loaded.best()[1] == s.optimizer.best()[1]
     assert np.array_equal(loaded.best()[0], s.optimizer.best()[0])
     # The firmware's Rust loader (`Cmaes<3, 7>`) continues from the file as Python does.
     out = subprocess.run([REFERENCE, "cmaes", "3", "0", "30", "--from", str(path), "--seed-after", "5"],
@@ -222,11 +230,19 @@ def test_it_learns_on_two_workers_within_the_optimizers_limit(cluster, algorithm
     # Learns: from 0.5 at the start to a tenth of it or less within 30 episodes.
     assert s.optimizer.evaluations == 30
     assert s.best()[1] <= 0.05, s.best()
+    # The same search as one at a time: the optimizer takes a generation's costs in the
+    # order it handed the candidates out, whatever order the workers finished in.
+    alone = optimizer(algorithm, seed=1)
+    for _ in range(30):
+        theta = alone.ask()
+        alone.tell(quadratic(dict(zip("abc", theta))))
+    assert np.array_equal(alone.best()[0], s.optimizer.best()[0])
     # Never more than the optimizer's limit out at once, by the searcher's count and by the
     # trials' own clocks: one at a time for a sequential search although the cluster had
-    # room for two, both workers busy where the optimizer allows more.
-    assert s.peak_in_flight <= s.optimizer.max_in_flight
-    assert most_at_once(results) == min(s.optimizer.max_in_flight, cluster["CPU"])
+    # room for two; more than one where the optimizer allows it.
+    limit = s.optimizer.max_in_flight
+    assert min(limit, 2) <= s.peak_in_flight <= limit
+    assert most_at_once(results) <= min(limit, cluster["CPU"])
 
 
 def failing_once(config):

@@ -66,7 +66,14 @@ def write_record(optimizer: "ctrl_adapt.Optimizer", path: Union[str, os.PathLike
     atomically (a temporary file renamed over ``path``), and return the Rust type's name.
 
     On the board, ``ctrl_adapt::record::load::<T>(&bytes)`` with ``T`` the returned type
-    (e.g. ``Cmaes<5, 8>``) continues from that state; ``best()`` is the best candidate."""
+    (e.g. ``Cmaes<5, 8>``) continues from that state; ``best()`` is the best candidate.
+    Firmware runs one episode at a time: with tickets outstanding this raises ``ValueError``
+    (report or cancel them first; :meth:`ctrl_adapt.Optimizer.save` still checkpoints them)."""
+    if optimizer.in_flight:
+        raise ValueError(
+            f"write_record: tickets {list(optimizer.in_flight)} are in flight; the firmware loads "
+            "records saved with nothing in flight (report or cancel them first)"
+        )
     data = optimizer.save()
     directory = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(dir=directory, prefix=".record-")
@@ -165,6 +172,8 @@ class CtrlAdaptSearch(Searcher):
         self.cancelled = 0
         #: The most candidates that were out at once.
         self.peak_in_flight = 0
+        # Cancelled candidates not yet handed out again (the optimizer hands them out first).
+        self._waiting = 0
         if space:
             self._set_space(space)
 
@@ -234,6 +243,7 @@ class CtrlAdaptSearch(Searcher):
         if handed is None:
             return None
         ticket, theta = handed
+        self._waiting = max(self._waiting - 1, 0)
         self._trials[trial_id] = ticket
         self.peak_in_flight = max(self.peak_in_flight, len(opt.in_flight))
         return self._configuration(theta)
@@ -256,6 +266,7 @@ class CtrlAdaptSearch(Searcher):
         if cost is None and self._penalty is None:
             opt.cancel(ticket)
             self.cancelled += 1
+            self._waiting += 1
             return
         if cost is None:
             value = cost = float(self._penalty)
@@ -278,7 +289,14 @@ class CtrlAdaptSearch(Searcher):
 
     def write_record(self, path: Union[str, os.PathLike]) -> str:
         """Write the optimizer's state as a record for the firmware (see :func:`write_record`)
-        and return its Rust type."""
+        and return its Rust type. Raises ``ValueError`` while a trial is running or a
+        cancelled candidate waits to be handed out again: the optimizer's record then holds
+        its tickets, which the firmware's type does not load."""
+        if self._waiting:
+            raise ValueError(
+                "write_record: a cancelled candidate waits to be handed out again; the firmware "
+                "loads records saved with nothing in flight (run it, or write after the search)"
+            )
         return write_record(self._optimizer, path)
 
     # -- checkpoints ----------------------------------------------------------------------
