@@ -28,6 +28,12 @@ pub enum Error {
     CandidatePending,
     /// Nothing has been evaluated yet.
     NoEvaluation,
+    /// A ticket that is not outstanding: never handed out, already reported or cancelled,
+    /// or from a generation that has ended.
+    UnknownTicket,
+    /// Candidates are in flight: the sequential `ask`/`tell` wait until every ticket is
+    /// reported.
+    InFlight,
 }
 
 impl fmt::Display for Error {
@@ -44,6 +50,10 @@ impl fmt::Display for Error {
             Self::Stopped => f.write_str("the optimizer has stopped"),
             Self::CandidatePending => f.write_str("a candidate is pending: tell its cost first"),
             Self::NoEvaluation => f.write_str("nothing has been evaluated yet"),
+            Self::UnknownTicket => f.write_str("unknown ticket: not outstanding"),
+            Self::InFlight => {
+                f.write_str("candidates are in flight: report or cancel their tickets first")
+            }
         }
     }
 }

@@ -62,9 +62,9 @@ pub use bounds::Bounds;
 pub use error::Error;
 pub use optimizer::{
     AnyOptimizer, Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, LineDirections, Optimizer,
-    Racos, Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Suppression,
-    TwoPhase, Weighting,
+    CoordinateSearch, CrsConfig, DiagonalCem, Generation, InFlight, LineBo, LineBoConfig,
+    LineDirections, Optimizer, Racos, Replacement, Rockstar, RockstarConfig, Sracos, SracosConfig,
+    Status, Suppression, Ticket, TwoPhase, Weighting,
 };
 pub use vector::Vector;
 

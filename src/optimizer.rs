@@ -11,6 +11,9 @@
 //!
 //! Batch algorithms (CEM, RACOS) still hand out one candidate per `ask` and update their
 //! model when a batch is complete, so a firmware never holds more than one candidate.
+//! Host callers that evaluate a generation in parallel wrap the optimizer in
+//! [`InFlight`], which hands out several candidates with tickets and gives the same
+//! results as this sequential contract ([`in_flight`]).
 //!
 //! # Why `ask` returns the candidate by value
 //! `ask` returns an owned [`Vector`] (4·N bytes, 72 bytes for the 18-parameter AUV policy)
@@ -40,6 +43,7 @@ pub mod cem;
 pub mod cmaes;
 pub mod coordinate;
 pub mod crs;
+pub mod in_flight;
 pub mod line_bo;
 pub mod rockstar;
 pub mod sracos;
@@ -53,6 +57,7 @@ pub use cem::{CemConfig, DiagonalCem, Weighting};
 pub use cmaes::{Cmaes, CmaesConfig};
 pub use coordinate::{CoordinateConfig, CoordinateSearch};
 pub use crs::{ControlledRandomSearch, CrsConfig};
+pub use in_flight::{Draw, Generation, InFlight, Ticket};
 pub use line_bo::{LineBo, LineBoConfig, LineDirections};
 pub use rockstar::{Rockstar, RockstarConfig};
 #[allow(deprecated)]

@@ -307,8 +307,8 @@ mod shapes {
     };
     use crate::cost::{ApexHeightCost, QuadraticCost, SurveyCost};
     use crate::optimizer::{
-        AnyOptimizer, Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, LineBo,
-        Optimizer, Racos, Rockstar, Sracos, TwoPhase,
+        AnyOptimizer, Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Generation,
+        InFlight, LineBo, Optimizer, Racos, Rockstar, Sracos, TwoPhase,
     };
     use crate::{Bounds, Vector};
 
@@ -329,6 +329,15 @@ mod shapes {
     }
     impl<const N: usize> Persistent for CoordinateSearch<N> {
         const SHAPE: Shape = Shape::new(*b"CRDS", &[N]);
+
+        fn validate(&self) -> Result<(), Error> {
+            self.check_decoded()
+        }
+    }
+    impl<O: Persistent + Generation<N>, const N: usize, const C: usize> Persistent
+        for InFlight<O, N, C>
+    {
+        const SHAPE: Shape = Shape::new(*b"FLYT", &[N, C]).nest(O::SHAPE);
 
         fn validate(&self) -> Result<(), Error> {
             self.check_decoded()

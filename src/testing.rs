@@ -7,7 +7,11 @@ use proptest::prelude::*;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
-use crate::optimizer::{Best, Optimizer, Status};
+use crate::optimizer::{
+    AnyOptimizer, Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
+    CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, LineDirections, Optimizer,
+    Rockstar, RockstarConfig, Sracos, SracosConfig, Status, TwoPhase,
+};
 use crate::random::unit_f32;
 use nalgebra::SMatrix;
 
@@ -301,4 +305,46 @@ pub(crate) fn check_rejected_starts<T>(
         build([f32::NAN, 0.0].into()).err(),
         Some(Error::NonFinite(name))
     );
+}
+
+/// Every optimizer of the enum at N = 3 with its default configuration (CMA-ES with and
+/// without the active update, LineBO with and without a threshold and with random
+/// lines), for the contract that does not depend on the algorithm.
+pub(crate) fn every_optimizer() -> [AnyOptimizer<3, 4, 2, 5, 8>; 11] {
+    let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
+    let z = Vector::zeros();
+    let crs = || ControlledRandomSearch::try_new(b, CrsConfig::DEFAULT).unwrap();
+    let active = CmaesConfig {
+        active: true,
+        ..CmaesConfig::DEFAULT
+    };
+    let safe = LineBoConfig {
+        threshold: Some(0.0),
+        ..LineBoConfig::DEFAULT
+    };
+    let random = LineBoConfig {
+        directions: LineDirections::Random,
+        ..LineBoConfig::DEFAULT
+    };
+    [
+        CoordinateSearch::try_new(b, z, CoordinateConfig::DEFAULT)
+            .unwrap()
+            .into(),
+        crs().into(),
+        TwoPhase::try_new(crs(), 8, CoordinateConfig::DEFAULT)
+            .unwrap()
+            .into(),
+        Sracos::try_new(b, SracosConfig::DEFAULT).unwrap().into(),
+        DiagonalCem::try_new(b, z, CemConfig::DEFAULT)
+            .unwrap()
+            .into(),
+        Cmaes::try_new(b, z, CmaesConfig::DEFAULT).unwrap().into(),
+        Cmaes::try_new(b, z, active).unwrap().into(),
+        Rockstar::try_new(b, z, RockstarConfig::DEFAULT)
+            .unwrap()
+            .into(),
+        LineBo::try_new(b, z, LineBoConfig::DEFAULT).unwrap().into(),
+        LineBo::try_new(b, z, safe).unwrap().into(),
+        LineBo::try_new(b, z, random).unwrap().into(),
+    ]
 }

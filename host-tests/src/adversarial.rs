@@ -41,7 +41,9 @@ use ctrl_adapt::controller::{
     StateFeatures,
 };
 use ctrl_adapt::cost::Shaper;
-use ctrl_adapt::optimizer::{Bounds, Error, Optimizer, Status, Vector};
+use ctrl_adapt::optimizer::{
+    Bounds, Error, Generation, InFlight, Optimizer, Status, Ticket, Vector,
+};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -300,6 +302,31 @@ impl<const N: usize> Model<N> {
     }
 }
 
+/// One construction of the drivers: a box (valid or not), a budget, and what `build`
+/// makes of them, counted in `tally`; `None` when either was refused.
+fn construct<const N: usize, O>(
+    rng: &mut DriverRng,
+    seed: u64,
+    op: u64,
+    tally: &mut Tally,
+    build: &mut impl FnMut(&mut DriverRng, Bounds<N>, u32) -> Result<O, Error>,
+) -> Option<(Bounds<N>, u32, O)> {
+    let built = adversarial_bounds::<N>(rng).and_then(|bounds| {
+        let limit = budget(rng);
+        guarded(seed, op, || build(rng, bounds, limit)).map(|o| (bounds, limit, o))
+    });
+    match built {
+        Ok(built) => {
+            tally.built += 1;
+            Some(built)
+        }
+        Err(_) => {
+            tally.refused_constructions += 1;
+            None
+        }
+    }
+}
+
 /// Drives optimizers built by `build` (from the driver's RNG, a box, and a budget) for
 /// `operations` operations from `seed`, checking the contract after every one (module docs).
 /// `budget_of` reads back the budget an optimizer was built with, for the evaluations
@@ -340,20 +367,10 @@ where
         // Construction: boxes and configurations, valid or not.
         op += 1;
         tally.operations += 1;
-        let Ok(bounds) = adversarial_bounds::<N>(&mut rng) else {
-            tally.refused_constructions += 1;
+        let Some((bounds, limit, mut o)) = construct(&mut rng, seed, op, &mut tally, &mut build)
+        else {
             continue;
         };
-        let limit = budget(&mut rng);
-        let built = guarded(seed, op, || build(&mut rng, bounds, limit));
-        let mut o = match built {
-            Ok(o) => o,
-            Err(_) => {
-                tally.refused_constructions += 1;
-                continue;
-            }
-        };
-        tally.built += 1;
         if o.bounds() != &bounds {
             return Err(fail(
                 op,
@@ -517,6 +534,278 @@ where
                     }
                 }
                 (b, l) => return Err(fail(op, format!("best {b:?}, lowest told {l:?}"))),
+            }
+        }
+    }
+    Ok(tally)
+}
+
+/// [`drive`] for several candidates in flight: the optimizer built by `build` is wrapped in
+/// an [`InFlight`] with room for `C`, and the driver mixes `suggest`, `report` (of an
+/// outstanding ticket, a made-up one, a non-finite cost), `cancel`, and the sequential
+/// `ask`/`tell` through the wrapper. After every operation it checks:
+///
+/// * candidates are finite and inside the bounds; a cancelled candidate comes back before a
+///   new one; `suggest` returns a candidate exactly when the capacity it announced was > 0,
+///   and fails only with `Stopped` (stopped search, or SRACOS's exhausted box) or
+///   `CandidatePending` (a sequential `ask` pending);
+/// * a refused call (unknown ticket, non-finite cost, `ask`/`tell` with tickets out, ...)
+///   answers with its error and changes nothing;
+/// * the outstanding tickets are those handed out and neither reported nor cancelled, never
+///   more than `max_in_flight`;
+/// * `evaluations` never exceeds the budget, and a search at its budget is not running;
+/// * whenever the wrapper is idle, `evaluations` counts every accepted cost and, with
+///   `strict_best`, the best cost is the lowest of them (TwoPhase changes conditions: then
+///   only that the best cost is one of them).
+pub fn drive_in_flight<const N: usize, O, const C: usize>(
+    seed: u64,
+    operations: u64,
+    strict_best: bool,
+    mut build: impl FnMut(&mut DriverRng, Bounds<N>, u32) -> Result<O, Error>,
+) -> Result<Tally, Violation>
+where
+    O: Generation<N> + Clone + PartialEq + fmt::Debug,
+{
+    let mut rng = DriverRng::seed_from_u64(seed);
+    let mut tally = Tally::default();
+    let mut op = 0u64;
+    let fail = |op: u64, message: String| Violation {
+        seed,
+        operation: op,
+        message,
+    };
+    'build: while op < operations {
+        op += 1;
+        tally.operations += 1;
+        let Some((bounds, limit, o)) = construct(&mut rng, seed, op, &mut tally, &mut build) else {
+            continue;
+        };
+        let mut flight = InFlight::<O, N, C>::new(o);
+        // Outstanding (ticket, θ), cancelled θs, the sequential pending θ, accepted costs.
+        let mut out: Vec<(Ticket, Vector<N>)> = Vec::new();
+        let mut cancelled: Vec<Vector<N>> = Vec::new();
+        let mut pending: Option<Vector<N>> = None;
+        let mut accepted: Vec<f32> = Vec::new();
+        let mut plateau = adversarial_cost(&mut rng, &Vector::<N>::zeros(), 1.0);
+        if !plateau.is_finite() {
+            plateau = 1.0;
+        }
+        let mut stopped = 0;
+        while op < operations {
+            op += 1;
+            tally.operations += 1;
+            let before = flight.clone();
+            let choice = rng.next_u32() % 100;
+            if choice == 0 {
+                continue 'build;
+            } else if choice < 40 {
+                let capacity = flight.capacity();
+                match guarded(seed, op, || flight.suggest(&mut rng)) {
+                    Ok(Some((ticket, theta))) => {
+                        tally.asks += 1;
+                        if !theta.iter().all(|v| v.is_finite()) || !bounds.contains(&theta) {
+                            return Err(fail(
+                                op,
+                                format!("candidate {theta:?} outside {bounds:?}"),
+                            ));
+                        }
+                        if capacity == 0 || out.iter().any(|(t, _)| *t == ticket) {
+                            return Err(fail(
+                                op,
+                                format!("suggest with capacity {capacity} gave {ticket:?}"),
+                            ));
+                        }
+                        if !cancelled.is_empty() {
+                            let Some(i) = cancelled.iter().position(|c| *c == theta) else {
+                                return Err(fail(
+                                    op,
+                                    format!(
+                                        "a new candidate {theta:?} before the cancelled {cancelled:?}"
+                                    ),
+                                ));
+                            };
+                            cancelled.swap_remove(i);
+                        }
+                        out.push((ticket, theta));
+                    }
+                    Ok(None) => {
+                        if capacity != 0 || !same(&flight, &before) {
+                            return Err(fail(
+                                op,
+                                format!("suggest gave nothing with capacity {capacity}"),
+                            ));
+                        }
+                    }
+                    Err(e) => {
+                        tally.refused_calls += 1;
+                        let expected = match e {
+                            Error::CandidatePending => pending.is_some(),
+                            Error::Stopped => {
+                                before.status() != Status::Running
+                                    || (flight.status() == Status::Converged
+                                        && flight.evaluations() == before.evaluations())
+                            }
+                            _ => false,
+                        };
+                        if !expected {
+                            return Err(fail(op, format!("suggest failed with {e:?}")));
+                        }
+                        if e == Error::Stopped {
+                            stopped += 1;
+                            if stopped > 3 {
+                                tally.stopped += 1;
+                                continue 'build;
+                            }
+                        }
+                    }
+                }
+            } else if choice < 80 {
+                // report (mostly an outstanding ticket) or cancel
+                let pick = (!out.is_empty() && rng.next_u32() % 8 != 0)
+                    .then(|| rng.next_u32() as usize % out.len());
+                let ticket = pick.map_or(Ticket::new(rng.next_u32()), |i| out[i].0);
+                let known = out.iter().position(|(t, _)| *t == ticket);
+                if rng.next_u32() % 10 == 0 {
+                    let result = flight.cancel(ticket);
+                    match (result, known) {
+                        (Ok(()), Some(i)) => cancelled.push(out.swap_remove(i).1),
+                        (Err(Error::UnknownTicket), None) if same(&flight, &before) => {
+                            tally.refused_calls += 1;
+                        }
+                        (r, _) => return Err(fail(op, format!("cancel({ticket:?}) gave {r:?}"))),
+                    }
+                    continue;
+                }
+                let cost = match known {
+                    Some(i) => adversarial_cost(&mut rng, &out[i].1, plateau),
+                    None => adversarial_f32(&mut rng),
+                };
+                let result = guarded(seed, op, || flight.report(ticket, cost));
+                let expected = match known {
+                    None => Err(Error::UnknownTicket),
+                    Some(_) if !cost.is_finite() => Err(Error::NonFinite("cost")),
+                    Some(_) => Ok(()),
+                };
+                if result != expected {
+                    return Err(fail(
+                        op,
+                        format!(
+                            "report({ticket:?}, {cost:e}) gave {result:?}, expected {expected:?}"
+                        ),
+                    ));
+                }
+                match (result, known) {
+                    (Ok(()), Some(i)) => {
+                        out.swap_remove(i);
+                        accepted.push(cost);
+                        tally.accepted_tells += 1;
+                    }
+                    _ => {
+                        tally.refused_calls += 1;
+                        if !same(&flight, &before) {
+                            return Err(fail(op, "a refused report changed the state".into()));
+                        }
+                    }
+                }
+            } else {
+                // the sequential calls through the wrapper
+                let idle = before.idle();
+                if rng.next_u32() % 2 == 0 {
+                    match guarded(seed, op, || flight.ask(&mut rng)) {
+                        Ok(theta)
+                            if idle
+                                && bounds.contains(&theta)
+                                && pending.is_none_or(|p| p == theta) =>
+                        {
+                            pending = Some(theta)
+                        }
+                        Err(Error::InFlight) if !idle && same(&flight, &before) => {
+                            tally.refused_calls += 1;
+                        }
+                        Err(Error::Stopped) if idle => tally.refused_calls += 1,
+                        r => return Err(fail(op, format!("ask gave {r:?} (idle: {idle})"))),
+                    }
+                } else {
+                    let cost = adversarial_f32(&mut rng);
+                    let result = guarded(seed, op, || flight.tell(cost));
+                    let expected = if !idle {
+                        Err(Error::InFlight)
+                    } else if pending.is_none() {
+                        Err(Error::NoPendingAsk)
+                    } else if !cost.is_finite() {
+                        Err(Error::NonFinite("cost"))
+                    } else {
+                        Ok(())
+                    };
+                    if result != expected {
+                        return Err(fail(
+                            op,
+                            format!("tell({cost:e}) gave {result:?}, expected {expected:?}"),
+                        ));
+                    }
+                    if result.is_ok() {
+                        pending = None;
+                        accepted.push(cost);
+                        tally.accepted_tells += 1;
+                    } else {
+                        tally.refused_calls += 1;
+                        if !same(&flight, &before) {
+                            return Err(fail(op, "a refused tell changed the state".into()));
+                        }
+                    }
+                }
+            }
+            // The state after every operation.
+            let tickets: Vec<Ticket> = flight.in_flight().collect();
+            if tickets.len() != out.len() || out.iter().any(|(t, _)| !tickets.contains(t)) {
+                return Err(fail(op, format!("tickets {tickets:?}, expected {out:?}")));
+            }
+            if tickets.len() > flight.max_in_flight() {
+                return Err(fail(
+                    op,
+                    format!(
+                        "{} in flight, at most {}",
+                        tickets.len(),
+                        flight.max_in_flight()
+                    ),
+                ));
+            }
+            let evaluations = flight.evaluations();
+            if evaluations > limit || (evaluations == limit && flight.status() == Status::Running) {
+                return Err(fail(
+                    op,
+                    format!(
+                        "{evaluations} evaluations, budget {limit}, {:?}",
+                        flight.status()
+                    ),
+                ));
+            }
+            if flight.idle() {
+                if evaluations as usize != accepted.len() {
+                    return Err(fail(
+                        op,
+                        format!("{evaluations} evaluations, {} accepted", accepted.len()),
+                    ));
+                }
+                let lowest = accepted.iter().copied().reduce(f32::min);
+                let best = flight.best().map(|b| b.cost);
+                let fine = match (best, lowest) {
+                    (None, None) => true,
+                    (Some(b), Some(l)) => {
+                        if strict_best {
+                            b == l
+                        } else {
+                            accepted.contains(&b)
+                        }
+                    }
+                    _ => false,
+                };
+                if !fine {
+                    return Err(fail(
+                        op,
+                        format!("best {best:?}, lowest accepted {lowest:?}"),
+                    ));
+                }
             }
         }
     }

@@ -3,7 +3,9 @@
 //! host-tests --test adversarial`), twenty thousand in a debug `cargo test`. Each test
 //! checks, after every operation, the contract listed in the driver's docs, and prints what
 //! it exercised. `a_planted_bug_is_caught` shows the driver failing on an optimizer with a
-//! deliberate defect.
+//! deliberate defect. The `in_flight_*` tests drive the same optimizers wrapped in
+//! `InFlight` ([`host_tests::adversarial::drive_in_flight`]): tickets handed out, reported
+//! in any order, cancelled and made up, mixed with the sequential calls.
 //!
 //! The `forged_*` tests run the forged-record sweep ([`host_tests::forgery`]) on every
 //! persistent optimizer and on an adapter: a record taken mid-run, every byte overwritten in
@@ -25,7 +27,7 @@ use ctrl_adapt::optimizer::{
 use ctrl_adapt::record::Persistent;
 use host_tests::adversarial::{
     ACTION_LIMIT, DriverRng, ENVELOPE, Tally, cap, count, drive, drive_adapter,
-    drive_in_conditions, field, point_in,
+    drive_in_conditions, drive_in_flight, field, point_in,
 };
 use host_tests::forgery::{
     self, ForgedAdapter, Forgeries, adapter_mid_run, mid_run, run_adapter, run_optimizer,
@@ -103,178 +105,253 @@ fn coordinate_search() {
     report("CoordinateSearch<3>", drive(1, OPERATIONS, coordinate));
 }
 
+fn crs(
+    rng: &mut DriverRng,
+    bounds: Bounds<N>,
+    limit: u32,
+) -> Result<ControlledRandomSearch<N, 8>, Error> {
+    ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, limit))
+}
+
 #[test]
 fn controlled_random_search() {
-    report(
-        "ControlledRandomSearch<3, 8>",
-        drive(2, OPERATIONS, |rng, bounds, limit| {
-            ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, limit))
-        }),
-    );
+    report("ControlledRandomSearch<3, 8>", drive(2, OPERATIONS, crs));
+}
+
+fn two_phase_build(
+    rng: &mut DriverRng,
+    bounds: Bounds<N>,
+    limit: u32,
+) -> Result<TwoPhase<ControlledRandomSearch<N, 8>, N>, Error> {
+    // The two budgets add up to `limit`, which the driver checks.
+    let global_budget = limit / 2;
+    let global = ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, u32::MAX))?;
+    let local = CoordinateConfig {
+        max_evaluations: limit - global_budget,
+        ..CoordinateConfig::DEFAULT
+    };
+    TwoPhase::try_new(global, global_budget, local)
 }
 
 #[test]
 fn two_phase() {
     report(
         "TwoPhase<ControlledRandomSearch<3, 8>>",
-        drive_in_conditions(
-            3,
-            OPERATIONS,
-            |rng, bounds, limit| {
-                // The two budgets add up to `limit`, which the driver checks.
-                let global_budget = limit / 2;
-                let global =
-                    ControlledRandomSearch::<N, 8>::try_new(bounds, crs_config(rng, u32::MAX))?;
-                let local = CoordinateConfig {
-                    max_evaluations: limit - global_budget,
-                    ..CoordinateConfig::DEFAULT
-                };
-                TwoPhase::try_new(global, global_budget, local)
-            },
-            |two| u8::from(two.phase() == Phase::Local),
-        ),
+        drive_in_conditions(3, OPERATIONS, two_phase_build, |two| {
+            u8::from(two.phase() == Phase::Local)
+        }),
     );
+}
+
+fn sracos_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Sracos<N>, Error> {
+    Sracos::<N>::try_new(bounds, sracos_config(rng, limit))
 }
 
 #[test]
 fn sracos() {
-    report(
-        "Sracos<3>",
-        drive(4, OPERATIONS, |rng, bounds, limit| {
-            Sracos::<N>::try_new(bounds, sracos_config(rng, limit))
-        }),
-    );
+    report("Sracos<3>", drive(4, OPERATIONS, sracos_build));
+}
+
+fn racos_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Racos<N>, Error> {
+    let s = sracos_config(rng, limit);
+    Racos::<N>::try_new(
+        bounds,
+        SracosConfig {
+            replacement: Replacement::Worst,
+            suppression: None,
+            max_evaluations: limit,
+            ..s
+        },
+    )
 }
 
 #[test]
 fn racos() {
-    report(
-        "Racos<3>",
-        drive(5, OPERATIONS, |rng, bounds, limit| {
-            let s = sracos_config(rng, limit);
-            Racos::<N>::try_new(
-                bounds,
-                SracosConfig {
-                    replacement: Replacement::Worst,
-                    suppression: None,
-                    max_evaluations: limit,
-                    ..s
-                },
-            )
-        }),
-    );
+    report("Racos<3>", drive(5, OPERATIONS, racos_build));
+}
+
+fn cem(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<DiagonalCem<N, 6, 3>, Error> {
+    let d = CemConfig::DEFAULT;
+    let config = CemConfig {
+        weighting: match rng.next_u32() % 3 {
+            0 => Weighting::Cem,
+            1 => Weighting::CmaEs,
+            _ => Weighting::PiBb {
+                h: field(rng, 10.0),
+            },
+        },
+        elite: (rng.next_u32().is_multiple_of(3)).then(|| (rng.next_u32() % 5) as usize),
+        initial_variance: field(rng, d.initial_variance),
+        adapt_covariance: rng.next_u32().is_multiple_of(2),
+        learning_rate: field(rng, d.learning_rate),
+        exploration_floor: field(rng, d.exploration_floor),
+        min_variance: field(rng, d.min_variance),
+        max_variance: field(rng, d.max_variance),
+        first_is_mean: rng.next_u32().is_multiple_of(2),
+        tolerance: field(rng, 1e-6),
+        max_evaluations: limit,
+    };
+    let mean = point_in(rng, &bounds);
+    DiagonalCem::<N, 6, 3>::try_new(bounds, mean, config)
 }
 
 #[test]
 fn diagonal_cem() {
-    report(
-        "DiagonalCem<3, 6, 3>",
-        drive(6, OPERATIONS, |rng, bounds, limit| {
-            let d = CemConfig::DEFAULT;
-            let config = CemConfig {
-                weighting: match rng.next_u32() % 3 {
-                    0 => Weighting::Cem,
-                    1 => Weighting::CmaEs,
-                    _ => Weighting::PiBb {
-                        h: field(rng, 10.0),
-                    },
-                },
-                elite: (rng.next_u32().is_multiple_of(3)).then(|| (rng.next_u32() % 5) as usize),
-                initial_variance: field(rng, d.initial_variance),
-                adapt_covariance: rng.next_u32().is_multiple_of(2),
-                learning_rate: field(rng, d.learning_rate),
-                exploration_floor: field(rng, d.exploration_floor),
-                min_variance: field(rng, d.min_variance),
-                max_variance: field(rng, d.max_variance),
-                first_is_mean: rng.next_u32().is_multiple_of(2),
-                tolerance: field(rng, 1e-6),
-                max_evaluations: limit,
-            };
-            let mean = point_in(rng, &bounds);
-            DiagonalCem::<N, 6, 3>::try_new(bounds, mean, config)
-        }),
-    );
+    report("DiagonalCem<3, 6, 3>", drive(6, OPERATIONS, cem));
+}
+
+fn cmaes_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Cmaes<N, 7>, Error> {
+    let d = CmaesConfig::DEFAULT;
+    let config = CmaesConfig {
+        initial_sigma: field(rng, d.initial_sigma),
+        max_sigma: field(rng, d.max_sigma),
+        penalty: field(rng, d.penalty),
+        eigen_interval: count(rng, d.eigen_interval),
+        tolerance: field(rng, d.tolerance),
+        max_evaluations: limit,
+        active: rng.next_u32().is_multiple_of(2),
+    };
+    let mean = point_in(rng, &bounds);
+    Cmaes::<N, 7>::try_new(bounds, mean, config)
 }
 
 #[test]
 fn cmaes() {
-    report(
-        "Cmaes<3, 7>",
-        drive(7, OPERATIONS, |rng, bounds, limit| {
-            let d = CmaesConfig::DEFAULT;
-            let config = CmaesConfig {
-                initial_sigma: field(rng, d.initial_sigma),
-                max_sigma: field(rng, d.max_sigma),
-                penalty: field(rng, d.penalty),
-                eigen_interval: count(rng, d.eigen_interval),
-                tolerance: field(rng, d.tolerance),
-                max_evaluations: limit,
-                active: rng.next_u32().is_multiple_of(2),
-            };
-            let mean = point_in(rng, &bounds);
-            Cmaes::<N, 7>::try_new(bounds, mean, config)
-        }),
-    );
+    report("Cmaes<3, 7>", drive(7, OPERATIONS, cmaes_build));
+}
+
+fn rockstar_build(
+    rng: &mut DriverRng,
+    bounds: Bounds<N>,
+    limit: u32,
+) -> Result<Rockstar<N, 15>, Error> {
+    let d = RockstarConfig::DEFAULT;
+    let maybe =
+        |rng: &mut DriverRng, v: f32| (rng.next_u32().is_multiple_of(4)).then(|| field(rng, v));
+    let config = RockstarConfig {
+        initial_sigma: field(rng, d.initial_sigma),
+        max_sigma: field(rng, d.max_sigma),
+        lambda: field(rng, d.lambda),
+        near_radius: field(rng, d.near_radius),
+        initial_samples: count(rng, d.initial_samples),
+        extra_starts_from: (rng.next_u32().is_multiple_of(2)).then(|| count(rng, 6)),
+        step_gain: field(rng, d.step_gain),
+        descent_iterations: cap(rng, d.descent_iterations),
+        trust_radius: field(rng, d.trust_radius),
+        descent_tolerance: field(rng, d.descent_tolerance),
+        kappa: field(rng, d.kappa),
+        zeta: maybe(rng, 1.2),
+        xi: maybe(rng, 1.05),
+        c_c: maybe(rng, 0.3),
+        c_cov: maybe(rng, 0.2),
+        tolerance: field(rng, d.tolerance),
+        max_evaluations: limit,
+    };
+    let start = point_in(rng, &bounds);
+    Rockstar::<N, 15>::try_new(bounds, start, config)
 }
 
 #[test]
 fn rockstar() {
-    report(
-        "Rockstar<3, 15>",
-        drive(8, OPERATIONS, |rng, bounds, limit| {
-            let d = RockstarConfig::DEFAULT;
-            let maybe = |rng: &mut DriverRng, v: f32| {
-                (rng.next_u32().is_multiple_of(4)).then(|| field(rng, v))
-            };
-            let config = RockstarConfig {
-                initial_sigma: field(rng, d.initial_sigma),
-                max_sigma: field(rng, d.max_sigma),
-                lambda: field(rng, d.lambda),
-                near_radius: field(rng, d.near_radius),
-                initial_samples: count(rng, d.initial_samples),
-                extra_starts_from: (rng.next_u32().is_multiple_of(2)).then(|| count(rng, 6)),
-                step_gain: field(rng, d.step_gain),
-                descent_iterations: cap(rng, d.descent_iterations),
-                trust_radius: field(rng, d.trust_radius),
-                descent_tolerance: field(rng, d.descent_tolerance),
-                kappa: field(rng, d.kappa),
-                zeta: maybe(rng, 1.2),
-                xi: maybe(rng, 1.05),
-                c_c: maybe(rng, 0.3),
-                c_cov: maybe(rng, 0.2),
-                tolerance: field(rng, d.tolerance),
-                max_evaluations: limit,
-            };
-            let start = point_in(rng, &bounds);
-            Rockstar::<N, 15>::try_new(bounds, start, config)
-        }),
-    );
+    report("Rockstar<3, 15>", drive(8, OPERATIONS, rockstar_build));
+}
+
+fn line_bo_build(
+    rng: &mut DriverRng,
+    bounds: Bounds<N>,
+    limit: u32,
+) -> Result<LineBo<N, 12>, Error> {
+    let d = LineBoConfig::DEFAULT;
+    let config = LineBoConfig {
+        length_scale: field(rng, d.length_scale),
+        signal_variance: field(rng, d.signal_variance),
+        noise_variance: field(rng, d.noise_variance),
+        jitter: field(rng, d.jitter),
+        beta: field(rng, d.beta),
+        directions: if rng.next_u32().is_multiple_of(2) {
+            LineDirections::Coordinate
+        } else {
+            LineDirections::Random
+        },
+        evaluations_per_line: count(rng, d.evaluations_per_line),
+        threshold: (rng.next_u32().is_multiple_of(2)).then(|| field(rng, 1.0)),
+        max_evaluations: limit,
+    };
+    let start = point_in(rng, &bounds);
+    LineBo::<N, 12>::try_new(bounds, start, config)
 }
 
 #[test]
 fn line_bo() {
-    report(
+    report("LineBo<3, 12>", drive(9, OPERATIONS, line_bo_build));
+}
+
+/// Room for this many candidates in flight in the in-flight runs (more than the CEM's 6, the
+/// CMA-ES's 7, the CRS's 8 hand out at once, so the capacity comes from the algorithm).
+const C: usize = 8;
+
+fn in_flight_report(name: &str, result: Result<Tally, host_tests::adversarial::Violation>) {
+    report(&format!("InFlight<{name}, 3, {C}>"), result);
+}
+
+#[test]
+fn in_flight_sequential_ones() {
+    in_flight_report(
+        "CoordinateSearch<3>",
+        drive_in_flight::<N, _, C>(21, OPERATIONS, true, coordinate),
+    );
+    in_flight_report(
+        "Sracos<3>",
+        drive_in_flight::<N, _, C>(24, OPERATIONS, true, sracos_build),
+    );
+    in_flight_report(
+        "Racos<3>",
+        drive_in_flight::<N, _, C>(25, OPERATIONS, true, racos_build),
+    );
+}
+
+#[test]
+fn in_flight_controlled_random_search() {
+    in_flight_report(
+        "ControlledRandomSearch<3, 8>",
+        drive_in_flight::<N, _, C>(22, OPERATIONS, true, crs),
+    );
+    // TwoPhase changes conditions at its hand-over: its best is checked to be a told cost.
+    in_flight_report(
+        "TwoPhase<ControlledRandomSearch<3, 8>>",
+        drive_in_flight::<N, _, C>(23, OPERATIONS, false, two_phase_build),
+    );
+}
+
+#[test]
+fn in_flight_diagonal_cem() {
+    in_flight_report(
+        "DiagonalCem<3, 6, 3>",
+        drive_in_flight::<N, _, C>(26, OPERATIONS, true, cem),
+    );
+}
+
+#[test]
+fn in_flight_cmaes() {
+    in_flight_report(
+        "Cmaes<3, 7>",
+        drive_in_flight::<N, _, C>(27, OPERATIONS, true, cmaes_build),
+    );
+}
+
+#[test]
+fn in_flight_rockstar() {
+    in_flight_report(
+        "Rockstar<3, 15>",
+        drive_in_flight::<N, _, C>(28, OPERATIONS, true, rockstar_build),
+    );
+}
+
+#[test]
+fn in_flight_line_bo() {
+    in_flight_report(
         "LineBo<3, 12>",
-        drive(9, OPERATIONS, |rng, bounds, limit| {
-            let d = LineBoConfig::DEFAULT;
-            let config = LineBoConfig {
-                length_scale: field(rng, d.length_scale),
-                signal_variance: field(rng, d.signal_variance),
-                noise_variance: field(rng, d.noise_variance),
-                jitter: field(rng, d.jitter),
-                beta: field(rng, d.beta),
-                directions: if rng.next_u32().is_multiple_of(2) {
-                    LineDirections::Coordinate
-                } else {
-                    LineDirections::Random
-                },
-                evaluations_per_line: count(rng, d.evaluations_per_line),
-                threshold: (rng.next_u32().is_multiple_of(2)).then(|| field(rng, 1.0)),
-                max_evaluations: limit,
-            };
-            let start = point_in(rng, &bounds);
-            LineBo::<N, 12>::try_new(bounds, start, config)
-        }),
+        drive_in_flight::<N, _, C>(29, OPERATIONS, true, line_bo_build),
     );
 }
 

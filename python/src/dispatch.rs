@@ -20,12 +20,17 @@
 //! | `cmaes` | `Cmaes<n, λ>`, λ = 4 + ⌊3 ln n⌋ ([`default_population`]) |
 //! | `rockstar` | `Rockstar<n, {5n}>` (its recommended memory) |
 //! | `linebo` | `LineBo<n, 64>` |
+//!
+//! Each is held in an [`InFlight`] with room for [`IN_FLIGHT`] candidates, for Python's
+//! `suggest`/`report`: its record is the optimizer's own while nothing is in flight (the
+//! firmware type loads it), the `InFlight`'s with tickets outstanding ([`load`] reads
+//! both).
 
 use ctrl_adapt::optimizer::cmaes::default_population;
 use ctrl_adapt::optimizer::{
     Best, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
-    CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, Optimizer, Rockstar,
-    RockstarConfig, Sracos, SracosConfig, Status, TwoPhase,
+    CoordinateSearch, CrsConfig, DiagonalCem, Generation, InFlight, LineBo, LineBoConfig,
+    Optimizer, Rockstar, RockstarConfig, Sracos, SracosConfig, Status, Ticket, TwoPhase,
 };
 use ctrl_adapt::record::{self, Persistent, RecordError};
 use ctrl_adapt::{Bounds, Error, Vector};
@@ -42,6 +47,9 @@ pub const CEM_SAMPLES: usize = 10;
 pub const CEM_ELITES: usize = 5;
 /// The episodes LineBO's Gaussian process remembers.
 pub const LINE_BO_MEMORY: usize = 64;
+/// The most candidates in flight at once, whatever the algorithm allows (a CRS's Step 0
+/// at n = 18 allows 190).
+pub const IN_FLIGHT: usize = 64;
 
 /// The algorithms, by the names Python uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -182,19 +190,48 @@ pub trait Dynamic: Send + Sync {
     fn evaluations(&self) -> u32;
     /// Running, converged or out of budget.
     fn status(&self) -> Status;
-    /// The state as a record of its Rust type ([`ctrl_adapt::record`]).
+    /// A candidate and its ticket, `None` while nothing more can be handed out.
+    fn suggest(&mut self, rng: &mut Xoshiro128PlusPlus) -> Result<Option<(u32, Vec<f32>)>, Error>;
+    /// The cost of a ticket's candidate.
+    fn report(&mut self, ticket: u32, cost: f32) -> Result<(), Error>;
+    /// Gives a ticket back: its candidate is handed out again.
+    fn cancel(&mut self, ticket: u32) -> Result<(), Error>;
+    /// The outstanding tickets, in hand-out order.
+    fn in_flight(&self) -> Vec<u32>;
+    /// How many more `suggest` calls return a candidate now.
+    fn capacity(&self) -> usize;
+    /// The most candidates the optimizer can ever have in flight.
+    fn max_in_flight(&self) -> usize;
+    /// The state as a record ([`ctrl_adapt::record`]): of its Rust type while nothing is
+    /// in flight, of `InFlight<T, n, IN_FLIGHT>` otherwise.
     fn save(&self) -> Result<Vec<u8>, RecordError>;
     /// Another object in the same state.
     fn boxed_clone(&self) -> Box<dyn Dynamic>;
 }
 
-/// An optimizer of dimension `N` behind [`Dynamic`].
+/// An optimizer of dimension `N` behind [`Dynamic`], with room for [`IN_FLIGHT`]
+/// candidates in flight.
 #[derive(Clone)]
-struct Held<O, const N: usize>(O);
+struct Held<O, const N: usize>(InFlight<O, N, IN_FLIGHT>);
+
+/// `value`'s record, in a buffer grown until it fits: the record is at most the postcard
+/// encoding (never longer than the in-memory size for these types, plus varint slack) and
+/// a header.
+fn record_of<T: Persistent>(value: &T) -> Result<Vec<u8>, RecordError> {
+    let mut room = core::mem::size_of::<T>() * 2 + 256;
+    loop {
+        let mut buf = vec![0u8; room];
+        match record::save(value, &mut buf) {
+            Ok(bytes) => return Ok(bytes.to_vec()),
+            Err(RecordError::BufferTooSmall) if room < (1 << 26) => room *= 2,
+            Err(e) => return Err(e),
+        }
+    }
+}
 
 impl<O, const N: usize> Dynamic for Held<O, N>
 where
-    O: Optimizer<N> + Persistent + Clone + Send + Sync + 'static,
+    O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
 {
     fn dimension(&self) -> usize {
         N
@@ -226,17 +263,38 @@ where
         self.0.status()
     }
 
+    fn suggest(&mut self, rng: &mut Xoshiro128PlusPlus) -> Result<Option<(u32, Vec<f32>)>, Error> {
+        Ok(self
+            .0
+            .suggest(rng)?
+            .map(|(ticket, theta)| (ticket.get(), theta.as_slice().to_vec())))
+    }
+
+    fn report(&mut self, ticket: u32, cost: f32) -> Result<(), Error> {
+        self.0.report(Ticket::new(ticket), cost)
+    }
+
+    fn cancel(&mut self, ticket: u32) -> Result<(), Error> {
+        self.0.cancel(Ticket::new(ticket))
+    }
+
+    fn in_flight(&self) -> Vec<u32> {
+        self.0.in_flight().map(Ticket::get).collect()
+    }
+
+    fn capacity(&self) -> usize {
+        self.0.capacity()
+    }
+
+    fn max_in_flight(&self) -> usize {
+        self.0.max_in_flight()
+    }
+
     fn save(&self) -> Result<Vec<u8>, RecordError> {
-        // The record is at most the postcard encoding (never longer than the in-memory
-        // size for these types, plus varint slack) and a header: grow until it fits.
-        let mut room = core::mem::size_of::<O>() * 2 + 256;
-        loop {
-            let mut buf = vec![0u8; room];
-            match record::save(&self.0, &mut buf) {
-                Ok(bytes) => return Ok(bytes.to_vec()),
-                Err(RecordError::BufferTooSmall) if room < (1 << 26) => room *= 2,
-                Err(e) => return Err(e),
-            }
+        if self.0.idle() {
+            record_of(self.0.optimizer())
+        } else {
+            record_of(&self.0)
         }
     }
 
@@ -302,9 +360,25 @@ fn vector<const N: usize>(values: &[f32], name: &str) -> Result<Vector<N>, Build
 
 fn held<O, const N: usize>(o: O) -> Box<dyn Dynamic>
 where
-    O: Optimizer<N> + Persistent + Clone + Send + Sync + 'static,
+    O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
 {
-    Box::new(Held::<O, N>(o))
+    Box::new(Held::<O, N>(InFlight::new(o)))
+}
+
+/// Loads `bytes` as the record of `O` or, saved with tickets outstanding, of
+/// `InFlight<O, N, IN_FLIGHT>`.
+fn held_record<O, const N: usize>(bytes: &[u8]) -> Result<Box<dyn Dynamic>, RecordError>
+where
+    O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
+{
+    match record::load::<O>(bytes) {
+        Ok(o) => Ok(held(o)),
+        Err(RecordError::Shape) => {
+            let flight = record::load::<InFlight<O, N, IN_FLIGHT>>(bytes)?;
+            Ok(Box::new(Held(flight)))
+        }
+        Err(e) => Err(e),
+    }
 }
 
 /// Builds `spec` at dimension `N`; `CRS` = 10(N + 1), `LAMBDA` = the CMA-ES population,
@@ -371,20 +445,16 @@ fn load_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: 
     algorithm: Algorithm,
     bytes: &[u8],
 ) -> Result<Box<dyn Dynamic>, RecordError> {
-    Ok(match algorithm {
-        Algorithm::Coordinate => held(record::load::<CoordinateSearch<N>>(bytes)?),
-        Algorithm::Sracos => held(record::load::<Sracos<N>>(bytes)?),
-        Algorithm::Cem => held(record::load::<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>>(
-            bytes,
-        )?),
-        Algorithm::Crs => held(record::load::<ControlledRandomSearch<N, CRS>>(bytes)?),
-        Algorithm::TwoPhase => held(record::load::<TwoPhase<ControlledRandomSearch<N, CRS>, N>>(
-            bytes,
-        )?),
-        Algorithm::Cmaes => held(record::load::<Cmaes<N, LAMBDA>>(bytes)?),
-        Algorithm::Rockstar => held(record::load::<Rockstar<N, MEMORY>>(bytes)?),
-        Algorithm::LineBo => held(record::load::<LineBo<N, LINE_BO_MEMORY>>(bytes)?),
-    })
+    match algorithm {
+        Algorithm::Coordinate => held_record::<CoordinateSearch<N>, N>(bytes),
+        Algorithm::Sracos => held_record::<Sracos<N>, N>(bytes),
+        Algorithm::Cem => held_record::<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>, N>(bytes),
+        Algorithm::Crs => held_record::<ControlledRandomSearch<N, CRS>, N>(bytes),
+        Algorithm::TwoPhase => held_record::<TwoPhase<ControlledRandomSearch<N, CRS>, N>, N>(bytes),
+        Algorithm::Cmaes => held_record::<Cmaes<N, LAMBDA>, N>(bytes),
+        Algorithm::Rockstar => held_record::<Rockstar<N, MEMORY>, N>(bytes),
+        Algorithm::LineBo => held_record::<LineBo<N, LINE_BO_MEMORY>, N>(bytes),
+    }
 }
 
 /// Calls `$apply!(n, crs, lambda, memory)`-style arms for every compiled dimension: the

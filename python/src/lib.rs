@@ -56,6 +56,23 @@ fn f32s(values: &[f64], name: &str) -> PyResult<Vec<f32>> {
         .collect()
 }
 
+/// A cost as the firmware holds it: rounded to float32, a finite cost beyond float32
+/// refused like an infinite one (NaN).
+fn narrow(cost: f64) -> f32 {
+    let narrow = cost as f32;
+    if cost.is_finite() && !narrow.is_finite() {
+        f32::NAN
+    } else {
+        narrow
+    }
+}
+
+/// A ticket as the library numbers it; a number no ticket has (negative, beyond u32) is
+/// the library's unknown ticket.
+fn ticket_number(ticket: i64) -> PyResult<u32> {
+    u32::try_from(ticket).map_err(|_| optimizer_error(ctrl_adapt::Error::UnknownTicket))
+}
+
 fn array<'py>(py: Python<'py>, values: &[f32]) -> Bound<'py, PyArray1<f64>> {
     let wide: Vec<f64> = values.iter().map(|&v| f64::from(v)).collect();
     PyArray1::from_vec(py, wide)
@@ -147,14 +164,55 @@ impl PyOptimizer {
 
     /// The pending candidate's cost (rounded to float32, as the firmware holds it).
     fn tell(&mut self, cost: f64) -> PyResult<()> {
-        let narrow = cost as f32;
-        // A finite cost beyond float32 is refused like an infinite one.
-        let narrow = if cost.is_finite() && !narrow.is_finite() {
-            f32::NAN
-        } else {
-            narrow
-        };
-        self.inner.tell(narrow).map_err(optimizer_error)
+        self.inner.tell(narrow(cost)).map_err(optimizer_error)
+    }
+
+    /// `(ticket, candidate)`: the next candidate to evaluate in parallel with the others
+    /// in flight, or `None` while nothing more can be handed out before outstanding
+    /// tickets are reported. Raises `OptimizerError` once the optimizer has stopped.
+    fn suggest<'py>(
+        &mut self,
+        py: Python<'py>,
+    ) -> PyResult<Option<(u32, Bound<'py, PyArray1<f64>>)>> {
+        let suggested = self.inner.suggest(&mut self.rng).map_err(optimizer_error)?;
+        Ok(suggested.map(|(ticket, theta)| (ticket, array(py, &theta))))
+    }
+
+    /// The cost of `ticket`'s candidate (rounded to float32), in any order; the optimizer
+    /// takes the costs of a generation in the order they were handed out, so the result
+    /// is the sequential one. Raises `OptimizerError` for a ticket not outstanding or a
+    /// non-finite cost, changing nothing.
+    fn report(&mut self, ticket: i64, cost: f64) -> PyResult<()> {
+        self.inner
+            .report(ticket_number(ticket)?, narrow(cost))
+            .map_err(optimizer_error)
+    }
+
+    /// Gives `ticket` back (a failed trial): its candidate is handed out again by a later
+    /// `suggest`, under a new ticket.
+    fn cancel(&mut self, ticket: i64) -> PyResult<()> {
+        self.inner
+            .cancel(ticket_number(ticket)?)
+            .map_err(optimizer_error)
+    }
+
+    /// The outstanding tickets, in hand-out order.
+    #[getter]
+    fn in_flight(&self) -> Vec<u32> {
+        self.inner.in_flight()
+    }
+
+    /// How many more `suggest` calls would return a candidate now.
+    #[getter]
+    fn capacity(&self) -> usize {
+        self.inner.capacity()
+    }
+
+    /// The most candidates this optimizer can ever have outstanding at once (1 for the
+    /// sequential algorithms).
+    #[getter]
+    fn max_in_flight(&self) -> usize {
+        self.inner.max_in_flight()
     }
 
     /// `(theta, cost)` of the best candidate told so far, or `None`.
@@ -182,8 +240,10 @@ impl PyOptimizer {
     }
 
     /// The optimizer's state as a record of its Rust type: the bytes firmware loads with
-    /// `ctrl_adapt::record::load::<T>` for `T` = [`rust_type`](Self::rust_type). The RNG is
-    /// not in it (firmware owns its own).
+    /// `ctrl_adapt::record::load::<T>` for `T` = [`rust_type`](Self::rust_type). With
+    /// tickets outstanding (or costs held, or a cancelled candidate waiting) the record of
+    /// `InFlight<T, n, 64>` instead, which `load` restores with the tickets. The RNG is not
+    /// in it (firmware owns its own).
     fn save<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
         let bytes = self.inner.save().map_err(record_error)?;
         Ok(PyBytes::new(py, &bytes))
@@ -252,6 +312,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("OptimizerError", m.py().get_type::<OptimizerError>())?;
     m.add("RecordError", m.py().get_type::<RecordError>())?;
     m.add("MAX_DIMENSION", dispatch::MAX_DIMENSION)?;
+    m.add("MAX_IN_FLIGHT", dispatch::IN_FLIGHT)?;
     m.add("FORMAT_VERSION", ctrl_adapt::record::FORMAT_VERSION)?;
     Ok(())
 }

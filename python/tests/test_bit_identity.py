@@ -7,6 +7,7 @@ the same seed, configuration and costs, and compares every candidate bit for bit
 
 import json
 import os
+import random
 import struct
 import subprocess
 
@@ -47,6 +48,23 @@ def drive(opt, costs):
     return seen
 
 
+def drive_in_flight(opt, costs, seed=0):
+    """`costs` through `suggest`/`report`: each generation handed out whole, its costs
+    (the k-th candidate handed out gets costs[k]) reported in a shuffled order; returns the
+    candidates in hand-out order as f32 bit patterns."""
+    shuffle = random.Random(seed)
+    seen = []
+    while len(seen) < len(costs):
+        out = []
+        while len(seen) < len(costs) and (pair := opt.suggest()) is not None:
+            out.append((pair[0], len(seen)))
+            seen.append(bits(pair[1]))
+        shuffle.shuffle(out)
+        for ticket, k in out:
+            opt.report(ticket, f32(costs[k]))
+    return seen
+
+
 def new(algorithm, n, seed):
     return ctrl_adapt.Optimizer(algorithm, -np.ones(n), np.ones(n), np.zeros(n) if
                                 algorithm not in ("sracos", "crs", "two-phase") else None, seed=seed)
@@ -64,6 +82,14 @@ def test_same_candidates_as_the_rust_type(algorithm, n):
     opt = new(algorithm, n, 7)
     assert drive(opt, ref["costs"]) == ref["candidates"]
     assert opt.evaluations == len(ref["costs"])
+
+
+@pytest.mark.parametrize("algorithm", ALGORITHMS)
+def test_shuffled_reports_give_the_rust_types_candidates(algorithm):
+    ref = reference(algorithm, 18, 7, STEPS)
+    opt = new(algorithm, 18, 7)
+    assert drive_in_flight(opt, ref["costs"], seed=1) == ref["candidates"]
+    assert opt.evaluations == len(ref["costs"]) and opt.in_flight == []
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)

@@ -21,7 +21,7 @@ from ray.tune.search import Searcher
 
 import ctrl_adapt
 from ctrl_adapt.tune import CtrlAdaptSearch, write_record
-from sequential_standin import SequentialStandIn as InFlight  # until the in-flight API lands
+from ctrl_adapt import Optimizer
 
 TARGET = np.array([0.5, -0.4, 0.3])
 SPACE = {"a": (-1.0, 1.0), "b": (-1.0, 1.0), "c": (-1.0, 1.0)}
@@ -32,7 +32,7 @@ REFERENCE = os.environ.get("CTRL_ADAPT_REFERENCE") or os.path.join(
 
 
 def optimizer(algorithm="cmaes", seed=1, **config):
-    return InFlight(algorithm, -np.ones(3), np.ones(3), np.zeros(3), seed=seed, **config)
+    return Optimizer(algorithm, -np.ones(3), np.ones(3), np.zeros(3), seed=seed, **config)
 
 
 def quadratic(config):
@@ -51,7 +51,7 @@ def searcher(opt=None, **kwargs):
 
 def test_a_configuration_names_the_candidate_and_keeps_constants():
     s = CtrlAdaptSearch({"gains": {"kp": (0.0, 2.0)}, "kd": (0.0, 1.0), "steps": 200},
-                        optimizer=InFlight("coordinate", np.zeros(2), np.array([2.0, 1.0])),
+                        optimizer=Optimizer("coordinate", np.zeros(2), np.array([2.0, 1.0])),
                         metric="cost", mode="min")
     theta = s.optimizer.copy().ask()  # the candidate the first suggest hands out
     config = s.suggest("t0")

@@ -114,6 +114,50 @@ macro_rules! any_optimizer {
             crate::forward_optimizer!($($variant),+);
         }
 
+        impl<const N: usize, const L: usize, const E: usize, const M: usize, const G: usize>
+            super::Generation<N> for AnyOptimizer<N, L, E, M, G>
+        {
+            fn room(&self) -> usize {
+                match self {
+                    $(Self::$variant(o) => o.room(),)+
+                }
+            }
+
+            fn most(&self) -> usize {
+                match self {
+                    $(Self::$variant(o) => o.most(),)+
+                }
+            }
+
+            fn draws_ahead(&self) -> bool {
+                match self {
+                    $(Self::$variant(o) => o.draws_ahead(),)+
+                }
+            }
+
+            fn draw<R: rand_core::RngCore + ?Sized>(
+                &mut self,
+                ahead: usize,
+                rng: &mut R,
+            ) -> Result<super::Draw<N>, crate::Error> {
+                match self {
+                    $(Self::$variant(o) => o.draw(ahead, rng),)+
+                }
+            }
+
+            fn resume(&mut self, draw: &super::Draw<N>) {
+                match self {
+                    $(Self::$variant(o) => o.resume(draw),)+
+                }
+            }
+
+            fn check_draw(&self, draw: &super::Draw<N>) -> Result<(), crate::Error> {
+                match self {
+                    $(Self::$variant(o) => o.check_draw(draw),)+
+                }
+            }
+        }
+
         #[cfg(feature = "serde")]
         impl<const N: usize, const L: usize, const E: usize, const M: usize, const G: usize>
             AnyOptimizer<N, L, E, M, G>
@@ -186,56 +230,14 @@ any_optimizer!(
 mod tests {
     use super::*;
     use crate::optimizer::{
-        CemConfig, CmaesConfig, CoordinateConfig, CrsConfig, LineBoConfig, LineDirections, Racos,
-        RockstarConfig, SracosConfig, Status,
+        CemConfig, CmaesConfig, CoordinateConfig, LineBoConfig, Racos, RockstarConfig,
+        SracosConfig, Status,
     };
-    use crate::testing::check_tell_after;
+    use crate::testing::{check_tell_after, every_optimizer};
     use crate::{Bounds, Error, Vector};
     use proptest::prelude::*;
     use rand_core::SeedableRng;
     use rand_xoshiro::Xoshiro128PlusPlus;
-
-    /// Every optimizer of the enum at N = 3 with its default configuration (CMA-ES with and
-    /// without the active update, LineBO with and without a threshold and with random
-    /// lines), for the contract that does not depend on the algorithm.
-    fn every_optimizer() -> [AnyOptimizer<3, 4, 2, 5, 8>; 11] {
-        let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
-        let z = Vector::zeros();
-        let crs = || ControlledRandomSearch::try_new(b, CrsConfig::DEFAULT).unwrap();
-        let active = CmaesConfig {
-            active: true,
-            ..CmaesConfig::DEFAULT
-        };
-        let safe = LineBoConfig {
-            threshold: Some(0.0),
-            ..LineBoConfig::DEFAULT
-        };
-        let random = LineBoConfig {
-            directions: LineDirections::Random,
-            ..LineBoConfig::DEFAULT
-        };
-        [
-            CoordinateSearch::try_new(b, z, CoordinateConfig::DEFAULT)
-                .unwrap()
-                .into(),
-            crs().into(),
-            TwoPhase::try_new(crs(), 8, CoordinateConfig::DEFAULT)
-                .unwrap()
-                .into(),
-            Sracos::try_new(b, SracosConfig::DEFAULT).unwrap().into(),
-            DiagonalCem::try_new(b, z, CemConfig::DEFAULT)
-                .unwrap()
-                .into(),
-            Cmaes::try_new(b, z, CmaesConfig::DEFAULT).unwrap().into(),
-            Cmaes::try_new(b, z, active).unwrap().into(),
-            Rockstar::try_new(b, z, RockstarConfig::DEFAULT)
-                .unwrap()
-                .into(),
-            LineBo::try_new(b, z, LineBoConfig::DEFAULT).unwrap().into(),
-            LineBo::try_new(b, z, safe).unwrap().into(),
-            LineBo::try_new(b, z, random).unwrap().into(),
-        ]
-    }
 
     proptest! {
         /// Checks, for every optimizer (and RACOS): `tell` with any f32, with or without a

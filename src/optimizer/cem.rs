@@ -99,6 +99,7 @@ use heapless::Vec;
 use rand_core::RngCore;
 
 use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, keep_ranked, normal_pair_f32};
+use super::{Draw, Generation};
 use super::{check_stopping, default_is_const, ledger_accessors, require};
 
 /// How the costs of a batch become the probabilities P_k of the update (paper section 3.3).
@@ -287,6 +288,9 @@ struct Sample<const N: usize> {
 /// assert!(cem.best().unwrap().cost < 1e-3);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) a whole batch of K can be in flight (its samples do
+/// not depend on the batch's costs), with the sequential run's results.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -523,6 +527,36 @@ impl<const N: usize, const K: usize, const E: usize> Optimizer<N> for DiagonalCe
     }
 
     ledger_accessors!();
+}
+
+/// A batch's samples are drawn from the same N(θ, diag σ²) whatever the costs told so far,
+/// so all `K` of it can be in flight.
+impl<const N: usize, const K: usize, const E: usize> Generation<N> for DiagonalCem<N, K, E> {
+    fn room(&self) -> usize {
+        self.ledger.room(K.saturating_sub(self.told))
+    }
+
+    fn most(&self) -> usize {
+        K
+    }
+
+    fn draws_ahead(&self) -> bool {
+        true
+    }
+
+    fn draw<R: RngCore + ?Sized>(&mut self, ahead: usize, rng: &mut R) -> Result<Draw<N>, Error> {
+        // `ask` without the ledger: the sample for place `told + ahead` of the batch.
+        let theta = if self.config.first_is_mean && self.told + ahead == 0 {
+            self.mean
+        } else {
+            self.sample(rng)
+        };
+        Ok(Draw::of(self.bounds.clamp(&theta)))
+    }
+
+    fn resume(&mut self, draw: &Draw<N>) {
+        self.ledger.hand_out(draw.theta, &self.bounds);
+    }
 }
 
 #[cfg(test)]

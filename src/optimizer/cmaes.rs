@@ -117,7 +117,7 @@ use nalgebra::{
 };
 use rand_core::RngCore;
 
-use super::{Ledger, Optimizer, Status, keep_ranked};
+use super::{Draw, Generation, Ledger, Optimizer, Status, keep_ranked};
 use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
@@ -362,6 +362,9 @@ struct Sample<const N: usize> {
 /// assert!((cma.mean()[0] - 0.3).abs() < 1e-4);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) a whole generation of λ = L can be in flight (its
+/// samples do not depend on the generation's costs), with the sequential run's results.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -490,6 +493,20 @@ impl<const N: usize, const L: usize> Cmaes<N, L> {
     /// B v, without copying B ([`times`]).
     fn times_basis(&self, v: &Vector<N>) -> Vector<N> {
         times(&self.basis, v)
+    }
+
+    /// x = m + σ B D z projected onto the unit box, as θ, with z and the excess ‖x − x̂‖²
+    /// that `tell` needs. Nothing in it depends on the costs of the generation.
+    fn draw_candidate<R: RngCore + ?Sized>(&self, rng: &mut R) -> Draw<N> {
+        let z = normal_vector_f32(rng);
+        let x = self.mean + self.step_of(&z) * self.sigma;
+        // A NaN coordinate projects to −1 and its excess is NaN, ranked as +∞ in `tell`.
+        let projected = x.map(|v| if v.is_nan() { -1.0 } else { v.clamp(-1.0, 1.0) });
+        Draw {
+            theta: self.unit.bounds.clamp(&self.unit.theta_of(&projected)),
+            aux: z,
+            excess: (x - projected).norm_squared(),
+        }
     }
 
     /// Keeps `sample` if it is among the μ best of the generation so far (all L with
@@ -694,14 +711,9 @@ impl<const N: usize, const L: usize> Optimizer<N> for Cmaes<N, L> {
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
-        let z = normal_vector_f32(rng);
-        let x = self.mean + self.step_of(&z) * self.sigma;
-        // A NaN coordinate projects to −1 and its excess is NaN, ranked as +∞ below.
-        let projected = x.map(|v| if v.is_nan() { -1.0 } else { v.clamp(-1.0, 1.0) });
-        self.drawn = z;
-        self.drawn_excess = (x - projected).norm_squared();
-        let theta = self.unit.theta_of(&projected);
-        Ok(self.ledger.hand_out(theta, &self.unit.bounds))
+        let draw = self.draw_candidate(rng);
+        self.resume(&draw);
+        Ok(draw.theta)
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
@@ -731,6 +743,38 @@ impl<const N: usize, const L: usize> Optimizer<N> for Cmaes<N, L> {
     }
 
     ledger_accessors!(unit.bounds);
+}
+
+/// A generation's λ samples are drawn with the same m, σ, B and D whatever the costs told
+/// so far, so all of it can be in flight.
+impl<const N: usize, const L: usize> Generation<N> for Cmaes<N, L> {
+    fn room(&self) -> usize {
+        self.ledger.room(L.saturating_sub(self.told))
+    }
+
+    fn most(&self) -> usize {
+        L
+    }
+
+    fn draws_ahead(&self) -> bool {
+        true
+    }
+
+    fn draw<R: RngCore + ?Sized>(&mut self, _ahead: usize, rng: &mut R) -> Result<Draw<N>, Error> {
+        Ok(self.draw_candidate(rng))
+    }
+
+    fn resume(&mut self, draw: &Draw<N>) {
+        self.drawn = draw.aux;
+        self.drawn_excess = draw.excess;
+        self.ledger.hand_out(draw.theta, &self.unit.bounds);
+    }
+
+    fn check_draw(&self, draw: &Draw<N>) -> Result<(), Error> {
+        self.unit.bounds.check(&draw.theta, "in_flight")?;
+        require(draw.aux.iter().all(|z| z.is_finite()), "in_flight")?;
+        require(draw.excess >= 0.0 || draw.excess.is_nan(), "in_flight")
+    }
 }
 
 #[cfg(test)]

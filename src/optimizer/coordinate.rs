@@ -149,6 +149,10 @@ enum Phase {
 /// assert!((best.theta[0] - 0.3).abs() < 1e-2 && (best.theta[1] + 0.2).abs() < 1e-2);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// One candidate at a time under [`InFlight`](super::InFlight) too (its
+/// [`Generation`](super::Generation) room is 1): each trial point follows the cost of the one
+/// before.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

@@ -27,7 +27,7 @@
 
 use rand_core::RngCore;
 
-use super::{Bounds, Error, Ledger, Optimizer, Status, Vector, random_index};
+use super::{Bounds, Draw, Error, Generation, Ledger, Optimizer, Status, Vector, random_index};
 use super::{check_stopping, default_is_const, ledger_accessors, require};
 use crate::vector::unrolled;
 
@@ -79,6 +79,9 @@ default_is_const!(CrsConfig);
 /// assert!(crs.best().unwrap().cost < 1e-4);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) the M points of Step 0 can be in flight together
+/// (uniform draws); after it, one trial point at a time.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -270,6 +273,39 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
             }
         }
         self.ledger.check_decoded(&self.bounds)
+    }
+}
+
+/// Step 0 samples the box uniformly whatever the costs, so the points that fill the set
+/// can be in flight together; after it each trial point follows the set the last cost
+/// changed (one at a time).
+impl<const N: usize, const M: usize> Generation<N> for ControlledRandomSearch<N, M> {
+    fn room(&self) -> usize {
+        let rest = M.saturating_sub(self.points.len());
+        // Full: one trial point at a time.
+        self.ledger.room(rest.max(1))
+    }
+
+    fn most(&self) -> usize {
+        M
+    }
+
+    fn draws_ahead(&self) -> bool {
+        !self.points.is_full()
+    }
+
+    fn draw<R: RngCore + ?Sized>(&mut self, _ahead: usize, rng: &mut R) -> Result<Draw<N>, Error> {
+        if self.points.is_full() {
+            return self.ask(rng).map(Draw::of);
+        }
+        Ok(Draw::of(
+            self.bounds.clamp(&self.bounds.sample_uniform(rng)),
+        ))
+    }
+
+    fn resume(&mut self, draw: &Draw<N>) {
+        // After an `ask`-made draw the same θ is pending already; this changes nothing.
+        self.ledger.hand_out(draw.theta, &self.bounds);
     }
 }
 

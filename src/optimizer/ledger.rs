@@ -169,6 +169,16 @@ impl<const N: usize> Ledger<N> {
         self.evaluations
     }
 
+    /// How many candidates can be in flight ([`Generation::room`](super::Generation)) when
+    /// the algorithm can draw the next `rest` without their costs: `rest` within the
+    /// evaluations left in the budget, 0 once the search has stopped.
+    pub(crate) fn room(&self, rest: usize) -> usize {
+        if self.status != Status::Running {
+            return 0;
+        }
+        rest.min(self.budget.saturating_sub(self.evaluations) as usize)
+    }
+
     pub(crate) fn budget_spent(&self) -> bool {
         self.evaluations >= self.budget
     }

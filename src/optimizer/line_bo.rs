@@ -305,6 +305,10 @@ struct Posterior {
 /// assert!(search.best().unwrap().cost < 0.01);
 /// # Ok::<(), ctrl_adapt::Error>(())
 /// ```
+///
+/// One candidate at a time under [`InFlight`](super::InFlight) too (its
+/// [`Generation`](super::Generation) room is 1): each point of a line follows the GP the cost
+/// before it updated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

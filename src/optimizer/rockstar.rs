@@ -205,7 +205,7 @@ use nalgebra::SMatrix;
 use rand_core::RngCore;
 
 use super::cholesky::{cholesky_in_place, solve_lower};
-use super::{Ledger, Optimizer, Status};
+use super::{Draw, Generation, Ledger, Optimizer, Status};
 use super::{check_sigmas, check_stopping, default_is_const, ledger_accessors, require};
 use crate::bounds::UnitMap;
 use crate::random::normal_vector_f32;
@@ -449,6 +449,9 @@ struct Regression {
 /// assert!((rock.theta_star()[0] - 0.3).abs() < 1e-3);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// Under [`InFlight`](super::InFlight) the `initial_samples` rollouts can be in flight
+/// together (drawn around the start); after them, one at a time.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -1111,6 +1114,70 @@ impl<const N: usize, const M: usize> Rockstar<N, M> {
     }
 }
 
+impl<const N: usize, const M: usize> Rockstar<N, M> {
+    /// x = θ* + σ A z projected onto the unit box: the next rollout in normalised
+    /// coordinates (nothing in it depends on the costs told since the last update).
+    fn draw_unit<R: RngCore + ?Sized>(&self, rng: &mut R) -> Vector<N> {
+        // In place.
+        let mut x = times(&self.factor, &normal_vector_f32(rng));
+        x *= self.sigma;
+        x += &self.theta_star;
+        clamp_unit(x)
+    }
+
+    /// Makes the rollout `drawn` (normalised) the pending candidate and returns its θ.
+    fn hand_out_unit(&mut self, drawn: Vector<N>) -> Vector<N> {
+        self.drawn = drawn;
+        self.drawn_white = times(&self.inverse, &self.drawn);
+        let theta = self.unit.theta_of(&self.drawn);
+        self.ledger.hand_out(theta, &self.unit.bounds)
+    }
+}
+
+/// The `initial_samples` rollouts before the first update are all drawn around the start,
+/// so they can be in flight together; after them each rollout follows the update of the
+/// one before (one at a time).
+impl<const N: usize, const M: usize> Generation<N> for Rockstar<N, M> {
+    fn room(&self) -> usize {
+        let initial = self.config.initial_samples as usize;
+        self.ledger.room(
+            initial
+                .saturating_sub(self.ledger.evaluations() as usize)
+                .max(1),
+        )
+    }
+
+    fn most(&self) -> usize {
+        self.config.initial_samples as usize
+    }
+
+    fn draws_ahead(&self) -> bool {
+        true
+    }
+
+    fn draw<R: RngCore + ?Sized>(&mut self, _ahead: usize, rng: &mut R) -> Result<Draw<N>, Error> {
+        let drawn = self.draw_unit(rng);
+        let theta = self.unit.bounds.clamp(&self.unit.theta_of(&drawn));
+        Ok(Draw {
+            theta,
+            aux: drawn,
+            excess: 0.0,
+        })
+    }
+
+    fn resume(&mut self, draw: &Draw<N>) {
+        self.hand_out_unit(draw.aux);
+    }
+
+    fn check_draw(&self, draw: &Draw<N>) -> Result<(), Error> {
+        self.unit.bounds.check(&draw.theta, "in_flight")?;
+        require(
+            draw.aux.iter().all(|v| (-1.0..=1.0).contains(v)),
+            "in_flight",
+        )
+    }
+}
+
 impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
     // Out of line: module docs, "Stack".
     #[inline(never)]
@@ -1118,14 +1185,8 @@ impl<const N: usize, const M: usize> Optimizer<N> for Rockstar<N, M> {
         if let Some(pending) = self.ledger.reissue()? {
             return Ok(pending);
         }
-        // x = θ* + σ A z, in place.
-        let mut x = times(&self.factor, &normal_vector_f32(rng));
-        x *= self.sigma;
-        x += &self.theta_star;
-        self.drawn = clamp_unit(x);
-        self.drawn_white = times(&self.inverse, &self.drawn);
-        let theta = self.unit.theta_of(&self.drawn);
-        Ok(self.ledger.hand_out(theta, &self.unit.bounds))
+        let drawn = self.draw_unit(rng);
+        Ok(self.hand_out_unit(drawn))
     }
 
     #[inline(never)]

@@ -600,6 +600,10 @@ fn check_samples<const N: usize>(
 /// assert!(search.best().unwrap().cost < 0.5);
 /// # Ok::<(), ctrl_adapt::optimizer::Error>(())
 /// ```
+///
+/// One candidate at a time under [`InFlight`](super::InFlight) too (its
+/// [`Generation`](super::Generation) room is 1): each candidate is drawn from the model the
+/// cost before it updated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -786,6 +790,9 @@ impl<const N: usize, const K: usize, const M: usize> Optimizer<N> for Sracos<N, 
 /// batch of `M` candidates is evaluated, then the best `K` of everything become positive and
 /// the next `M` negative. One candidate per `ask` all the same; the batch is stored in place,
 /// so the state is (K + 2M) samples.
+///
+/// One candidate at a time under [`InFlight`](super::InFlight) too: a candidate equal to one
+/// told in the batch is refused, so the batch's candidates depend on the told costs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

@@ -40,6 +40,9 @@ pub enum Phase {
 
 /// A global optimizer `G` for at most `global_budget` evaluations, then a
 /// [`CoordinateSearch`] from its best θ.
+///
+/// One candidate at a time under [`InFlight`](super::InFlight), whatever its global phase
+/// allows on its own.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]

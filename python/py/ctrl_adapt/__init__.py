@@ -21,7 +21,7 @@ import json as _json
 
 import numpy as _np
 
-from ._native import FORMAT_VERSION, MAX_DIMENSION, OptimizerError, RecordError
+from ._native import FORMAT_VERSION, MAX_DIMENSION, MAX_IN_FLIGHT, OptimizerError, RecordError
 from ._native import Optimizer as _Native
 from ._native import algorithms, rust_type
 
@@ -32,6 +32,7 @@ __all__ = [
     "algorithms",
     "rust_type",
     "MAX_DIMENSION",
+    "MAX_IN_FLIGHT",
     "FORMAT_VERSION",
 ]
 
@@ -54,9 +55,17 @@ class Optimizer:
     for ``"two-phase"``: ``global_budget``, ``global`` (a dict of ``CrsConfig`` fields) and
     ``local`` (a dict of ``CoordinateConfig`` fields). An unknown field, a value out of its
     range or a non-finite cost raises :class:`OptimizerError` with the library's message.
+
+    Sequentially: ``theta = opt.ask()``, run the episode, ``opt.tell(cost)``. In parallel
+    (a generation evaluated by several workers): ``ticket, theta = opt.suggest()`` as long
+    as it returns a pair (``None``: report outstanding tickets first), then
+    ``opt.report(ticket, cost)`` in any order, or ``opt.cancel(ticket)`` for a failed
+    trial (its candidate is suggested again). The costs reach the optimizer in hand-out
+    order, so the result is bit for bit the sequential one. ``ask``/``tell`` raise while
+    tickets are outstanding; :meth:`save` works at any time.
     """
 
-    __slots__ = ("_native", "ask", "tell", "best", "pending")
+    __slots__ = ("_native", "ask", "tell", "best", "pending", "suggest", "report", "cancel")
 
     def __init__(self, algorithm, lower, upper, start=None, *, seed=0, **config):
         native = _Native(
@@ -76,6 +85,9 @@ class Optimizer:
         self.tell = native.tell
         self.best = native.best
         self.pending = native.pending
+        self.suggest = native.suggest
+        self.report = native.report
+        self.cancel = native.cancel
 
     @classmethod
     def load(cls, record, seed=0):
@@ -86,7 +98,10 @@ class Optimizer:
         return self
 
     def save(self):
-        """The state as a record of :attr:`rust_type` (bytes; the RNG is not in it)."""
+        """The state as a record of :attr:`rust_type` (bytes; the RNG is not in it). With
+        tickets outstanding it also holds them (``InFlight<rust_type, n, 64>``, which
+        :meth:`load` restores, ready for their ``report``); firmware loads records saved
+        with nothing in flight."""
         return self._native.save()
 
     def copy(self):
@@ -114,6 +129,24 @@ class Optimizer:
     @property
     def status(self):
         return self._native.status
+
+    @property
+    def in_flight(self):
+        """The outstanding tickets (handed out by :meth:`suggest`, not yet reported or
+        cancelled), in hand-out order."""
+        return self._native.in_flight
+
+    @property
+    def capacity(self):
+        """How many more :meth:`suggest` calls would return a candidate now."""
+        return self._native.capacity
+
+    @property
+    def max_in_flight(self):
+        """The most candidates this optimizer can ever have outstanding at once: a CEM
+        batch, a CMA-ES generation, CRS's initial set, ROCK*'s initial samples (at most
+        ``MAX_IN_FLIGHT``); 1 for the sequential algorithms."""
+        return self._native.max_in_flight
 
     def __repr__(self):
         return repr(self._native)
