@@ -22,6 +22,11 @@ methods, `linebo-safe` and `safeopt`, are given).
     .venv-peers/bin/python experiments/peers/compare.py --tasks auv --seeds 1-20
     .venv-peers/bin/python experiments/peers/compare.py --table a.json b.json   # merge runs
 
+The library through its Python package, like a peer (`py-cmaes`, `py-crs`, `py-rockstar`:
+the package installed in the same environment, `pip install ./python`):
+
+    .venv-peers/bin/python experiments/peers/compare.py --tasks auv --methods cmaes,py-cmaes
+
 The library's rows run without the peers installed (plain `python3`, no numpy).
 
 Outside `cargo test` and CI: the peers come from PyPI.
@@ -51,6 +56,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 ORACLE = os.path.join(ROOT, "target", "release", "oracle")
 LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar", "linebo", "linebo-safe"]
 PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt", "safeopt", "bayes-opt"]
+# The library through its Python package (`ctrl_adapt`, python/README.md), episodes from the
+# oracle like a peer's. `py-cmaes` has the oracle's `cmaes` sizes and settings (Cmaes<n, λ>,
+# σ₀ the task's step), so its rows equal that row's; `py-crs` and `py-rockstar` have the
+# package's sizes (M = 10(n + 1), M = 5n; the oracle's: 100 and 160).
+BINDING = ["py-cmaes", "py-crs", "py-rockstar"]
 STEP = {"auv": 0.25, "auv-calm": 0.25, "hopper": 1.0 / 6.0, "arm": 0.01, "sphere": 0.3, "ackley": 0.3}
 
 
@@ -106,9 +116,12 @@ class Scorer:
         self.oracle, self.budget, self.costs, self.unsafe = oracle, budget, [], 0
 
     def __call__(self, u):
+        return self.at(self.oracle.box(np.asarray(u, dtype=float)))
+
+    def at(self, x):
+        """The cost of θ = x in the task's box."""
         if len(self.costs) >= self.budget:
             raise Budget()
-        x = self.oracle.box(np.asarray(u, dtype=float))
         c, safety = self.oracle.ask("eval " + " ".join(f"{v:.9e}" for v in x)).split()
         self.costs.append(float(c))
         self.unsafe += safety == "unsafe"
@@ -156,6 +169,8 @@ def run_peer(method, oracle, budget, seed):
             cand = opt.ask()
             opt.tell(cand, f(cand.value))
         returned = np.array(opt.provide_recommendation().value)
+    elif method in BINDING:
+        returned = run_binding(method[len("py-"):], f, oracle, budget, seed)
     elif method == "safeopt":
         returned = run_safeopt(f, oracle, x0, budget)
     elif method == "bayes-opt":
@@ -163,6 +178,34 @@ def run_peer(method, oracle, budget, seed):
     else:
         raise ValueError(method)
     return f, oracle.box(returned)
+
+
+def run_binding(algorithm, f, oracle, budget, seed):
+    """The library's `algorithm` through its Python package, in the task's box, from the
+    task's start, with the oracle's settings (experiments/src/peers.rs, `run_library`): σ₀
+    the task's step in half-widths where the algorithm has one, the budget. Candidates come
+    from `suggest` (a whole generation where the algorithm allows it) and are reported in
+    order. Returns the best θ told, mapped to [-1, 1]^n for the Scorer."""
+    import ctrl_adapt
+
+    config = {"max_evaluations": budget}
+    if algorithm in ("cmaes", "rockstar"):
+        config["initial_sigma"] = STEP[oracle.task]
+    # CRS samples the box first and takes no start.
+    start = None if algorithm == "crs" else oracle.start
+    opt = ctrl_adapt.Optimizer(algorithm, oracle.lower, oracle.upper, start, seed=seed, **config)
+    try:
+        while opt.status == "running":
+            batch = []
+            while (handed := opt.suggest()) is not None:
+                batch.append(handed)
+            for ticket, theta in batch:
+                # As the oracle's own runs tell it: an infinite cost as f32::MAX.
+                opt.report(ticket, min(f.at(theta), 3.4028234663852886e38))
+    except Budget:
+        pass
+    best = opt.best()
+    return oracle.unit(best[0] if best is not None else oracle.start)
 
 
 # LineBO's GP (experiments/src/peers.rs, `line_bo_config`), given to SafeOpt as well: the
@@ -335,7 +378,7 @@ def seeds(text):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--tasks", default="auv,hopper,arm")
-    p.add_argument("--methods", default=",".join(LIBRARY + PEERS))
+    p.add_argument("--methods", default=",".join(LIBRARY + PEERS))  # BINDING: on request
     p.add_argument("--seeds", default="1-10", help="e.g. 1-20 or 1,2,5")
     p.add_argument("--budget", type=int, default=0, help="episodes (default: the task's)")
     p.add_argument("--jobs", type=int, default=2)
@@ -355,7 +398,7 @@ def main():
                 runs.setdefault((r["task"], r["method"], r["seed"]), r)
         results = list(runs.values())
         tasks = list(dict.fromkeys(r["task"] for r in results))
-        known = LIBRARY + PEERS
+        known = LIBRARY + BINDING + PEERS
         methods = [m for m in known if any(r["method"] == m for r in results)]
         print(table(results, tasks, methods))
         return
