@@ -38,18 +38,10 @@ use rand_xoshiro::Xoshiro128PlusPlus;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
-/// The largest dimension compiled in.
-pub const MAX_DIMENSION: usize = 64;
-
-/// The CEM's samples per update and elites.
-pub const CEM_SAMPLES: usize = 10;
-/// The CEM's elites per update.
-pub const CEM_ELITES: usize = 5;
-/// The episodes LineBO's Gaussian process remembers.
-pub const LINE_BO_MEMORY: usize = 64;
-/// The most candidates in flight at once, whatever the algorithm allows (a CRS's Step 0
-/// at n = 18 allows 190).
-pub const IN_FLIGHT: usize = 64;
+pub use ctrl_adapt_python_hot::{
+    CEM_ELITES, CEM_SAMPLES, IN_FLIGHT, LINE_BO_MEMORY, MAX_DIMENSION,
+};
+use ctrl_adapt_python_hot::{Steps, every_dimension};
 
 /// The algorithms, by the names Python uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -232,17 +224,18 @@ fn record_of<T: Persistent>(value: &T) -> Result<Vec<u8>, RecordError> {
 impl<O, const N: usize> Dynamic for Held<O, N>
 where
     O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
+    InFlight<O, N, IN_FLIGHT>: Steps<N>,
 {
     fn dimension(&self) -> usize {
         N
     }
 
     fn ask(&mut self, rng: &mut Xoshiro128PlusPlus) -> Result<Vec<f32>, Error> {
-        self.0.ask(rng).map(|theta| theta.as_slice().to_vec())
+        self.0.step_ask(rng).map(|theta| theta.as_slice().to_vec())
     }
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
-        self.0.tell(cost)
+        self.0.step_tell(cost)
     }
 
     fn best(&self) -> Option<(Vec<f32>, f32)> {
@@ -266,12 +259,12 @@ where
     fn suggest(&mut self, rng: &mut Xoshiro128PlusPlus) -> Result<Option<(u32, Vec<f32>)>, Error> {
         Ok(self
             .0
-            .suggest(rng)?
+            .step_suggest(rng)?
             .map(|(ticket, theta)| (ticket.get(), theta.as_slice().to_vec())))
     }
 
     fn report(&mut self, ticket: u32, cost: f32) -> Result<(), Error> {
-        self.0.report(Ticket::new(ticket), cost)
+        self.0.step_report(Ticket::new(ticket), cost)
     }
 
     fn cancel(&mut self, ticket: u32) -> Result<(), Error> {
@@ -361,6 +354,7 @@ fn vector<const N: usize>(values: &[f32], name: &str) -> Result<Vector<N>, Build
 fn held<O, const N: usize>(o: O) -> Box<dyn Dynamic>
 where
     O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
+    InFlight<O, N, IN_FLIGHT>: Steps<N>,
 {
     Box::new(Held::<O, N>(InFlight::new(o)))
 }
@@ -370,6 +364,7 @@ where
 fn held_record<O, const N: usize>(bytes: &[u8]) -> Result<Box<dyn Dynamic>, RecordError>
 where
     O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
+    InFlight<O, N, IN_FLIGHT>: Steps<N>,
 {
     match record::load::<O>(bytes) {
         Ok(o) => Ok(held(o)),
@@ -385,7 +380,16 @@ where
 /// `MEMORY` = 5N (ROCK*'s rollouts).
 fn build_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>(
     spec: &Spec<'_>,
-) -> Result<Box<dyn Dynamic>, BuildError> {
+) -> Result<Box<dyn Dynamic>, BuildError>
+where
+    InFlight<CoordinateSearch<N>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<Sracos<N>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<ControlledRandomSearch<N, CRS>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<TwoPhase<ControlledRandomSearch<N, CRS>, N>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<Cmaes<N, LAMBDA>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<LineBo<N, LINE_BO_MEMORY>, N, IN_FLIGHT>: Steps<N>,
+{
     let bounds = Bounds::<N>::try_new(vector(spec.lower, "lower")?, vector(spec.upper, "upper")?)?;
     let start = match spec.start {
         Some(start) => vector::<N>(start, "start")?,
@@ -444,7 +448,16 @@ fn build_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY:
 fn load_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>(
     algorithm: Algorithm,
     bytes: &[u8],
-) -> Result<Box<dyn Dynamic>, RecordError> {
+) -> Result<Box<dyn Dynamic>, RecordError>
+where
+    InFlight<CoordinateSearch<N>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<Sracos<N>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<ControlledRandomSearch<N, CRS>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<TwoPhase<ControlledRandomSearch<N, CRS>, N>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<Cmaes<N, LAMBDA>, N, IN_FLIGHT>: Steps<N>,
+    InFlight<LineBo<N, LINE_BO_MEMORY>, N, IN_FLIGHT>: Steps<N>,
+{
     match algorithm {
         Algorithm::Coordinate => held_record::<CoordinateSearch<N>, N>(bytes),
         Algorithm::Sracos => held_record::<Sracos<N>, N>(bytes),
@@ -457,28 +470,21 @@ fn load_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: 
     }
 }
 
-/// Calls `$apply!(n, crs, lambda, memory)`-style arms for every compiled dimension: the
-/// arguments of [`build_at`] and [`load_at`]. λ = 4 + ⌊3 ln n⌋ is written out (const
-/// generics cannot call a function of n on stable Rust); the package's tests check it
-/// against the rule.
-macro_rules! every_dimension {
+/// `Some($f::<n, 10(n + 1), λ, 5n>(args))` for the dimension `$n`, `None` outside
+/// 1..=[`MAX_DIMENSION`]: the arguments of [`build_at`] and [`load_at`], over the table of
+/// [`every_dimension`] (λ = 4 + ⌊3 ln n⌋, written out).
+macro_rules! at_dimension {
     ($n:expr, $f:ident, $($arg:expr),*) => {
-        every_dimension!(@arms $n, $f, ($($arg),*);
-            1 4, 2 6, 3 7, 4 8, 5 8, 6 9, 7 9, 8 10, 9 10, 10 10, 11 11, 12 11, 13 11, 14 11,
-            15 12, 16 12, 17 12, 18 12, 19 12, 20 12, 21 13, 22 13, 23 13, 24 13, 25 13, 26 13,
-            27 13, 28 13, 29 14, 30 14, 31 14, 32 14, 33 14, 34 14, 35 14, 36 14, 37 14, 38 14,
-            39 14, 40 15, 41 15, 42 15, 43 15, 44 15, 45 15, 46 15, 47 15, 48 15, 49 15, 50 15,
-            51 15, 52 15, 53 15, 54 15, 55 16, 56 16, 57 16, 58 16, 59 16, 60 16, 61 16, 62 16,
-            63 16, 64 16)
+        every_dimension!(at_dimension_arms!($n, $f, ($($arg),*)))
     };
-    (@arms $n:expr, $f:ident, $args:tt; $($dim:literal $lambda:literal),+) => {
+}
+
+macro_rules! at_dimension_arms {
+    (($n:expr, $f:ident, $args:tt); $($dim:literal $lambda:literal),+) => {
         match $n {
-            $($dim => every_dimension!(@call $f, $dim, $lambda, $args),)+
+            $($dim => Some($f::<$dim, { 10 * ($dim + 1) }, $lambda, { 5 * $dim }> $args),)+
             _ => None,
         }
-    };
-    (@call $f:ident, $dim:literal, $lambda:literal, ($($arg:expr),*)) => {
-        Some($f::<$dim, { 10 * ($dim + 1) }, $lambda, { 5 * $dim }>($($arg),*))
     };
 }
 
@@ -488,13 +494,13 @@ fn compiled_population(n: usize) -> Option<usize> {
     fn population<const N: usize, const C: usize, const L: usize, const M: usize>() -> usize {
         L
     }
-    every_dimension!(n, population,)
+    at_dimension!(n, population,)
 }
 
 /// Builds `spec` at the dimension of its bounds.
 pub fn build(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
     let n = spec.lower.len();
-    every_dimension!(n, build_at, spec).unwrap_or_else(|| {
+    at_dimension!(n, build_at, spec).unwrap_or_else(|| {
         Err(BuildError::Dimension(format!(
             "{n} parameters: the package is compiled for 1 to {MAX_DIMENSION}"
         )))
@@ -507,7 +513,7 @@ pub fn load(bytes: &[u8]) -> Result<(Algorithm, Box<dyn Dynamic>), RecordError> 
     // Every other error than a mismatched shape is the record's own: report it at once.
     for n in 1..=MAX_DIMENSION {
         for algorithm in Algorithm::ALL {
-            match every_dimension!(n, load_at, algorithm, bytes) {
+            match at_dimension!(n, load_at, algorithm, bytes) {
                 Some(Ok(o)) => return Ok((algorithm, o)),
                 Some(Err(RecordError::Shape)) | None => {}
                 Some(Err(e)) => return Err(e),
