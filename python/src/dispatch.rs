@@ -190,6 +190,9 @@ pub trait Dynamic: Send + Sync {
     fn cancel(&mut self, ticket: u32) -> Result<(), Error>;
     /// The outstanding tickets, in hand-out order.
     fn in_flight(&self) -> Vec<u32>;
+    /// Whether nothing is in flight: no ticket out, no cancelled candidate waiting, every
+    /// reported cost told (then [`Dynamic::save`] writes the firmware type's record).
+    fn idle(&self) -> bool;
     /// How many more `suggest` calls return a candidate now.
     fn capacity(&self) -> usize;
     /// The most candidates the optimizer can ever have in flight.
@@ -273,6 +276,10 @@ where
 
     fn in_flight(&self) -> Vec<u32> {
         self.0.in_flight().map(Ticket::get).collect()
+    }
+
+    fn idle(&self) -> bool {
+        self.0.idle()
     }
 
     fn capacity(&self) -> usize {

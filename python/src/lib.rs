@@ -202,6 +202,14 @@ impl PyOptimizer {
         self.inner.in_flight()
     }
 
+    /// Whether nothing is in flight: no ticket out, no cancelled candidate waiting to be
+    /// handed out again, every reported cost told; then `save()` is the firmware type's
+    /// record.
+    #[getter]
+    fn idle(&self) -> bool {
+        self.inner.idle()
+    }
+
     /// How many more `suggest` calls would return a candidate now.
     #[getter]
     fn capacity(&self) -> usize {

@@ -179,6 +179,27 @@ def test_the_written_record_is_the_firmware_types_state(tmp_path):
     assert write_record(again, path) == "Cmaes<3, 7>" and path.read_bytes() == again.save()
 
 
+def test_write_record_refuses_while_a_cancelled_candidate_waits(tmp_path):
+    """After a cancel nothing is in flight, but the candidate waits to be handed out again:
+    the state is not the firmware type's yet. `idle` says so and `write_record` refuses
+    (before, it wrote an `InFlight` record that the firmware's loader rejects)."""
+    opt = optimizer(seed=4)
+    path = tmp_path / "x.rec"
+    assert opt.idle
+    ticket, _ = opt.suggest()
+    assert not opt.idle
+    opt.cancel(ticket)
+    assert opt.in_flight == [] and not opt.idle
+    with pytest.raises(ValueError, match="cancelled candidate"):
+        write_record(opt, path)
+    assert not path.exists()
+    ticket, theta = opt.suggest()  # the same candidate again
+    opt.report(ticket, float(np.sum((theta - TARGET) ** 2)))
+    assert opt.idle
+    assert write_record(opt, path) == "Cmaes<3, 7>"
+    assert ctrl_adapt.Optimizer.load(path.read_bytes()).evaluations == opt.evaluations
+
+
 # -- on a local Ray cluster -------------------------------------------------------------------
 
 

@@ -101,7 +101,7 @@ class Optimizer:
         """The state as a record of :attr:`rust_type` (bytes; the RNG is not in it). With
         tickets outstanding it also holds them (``InFlight<rust_type, n, 64>``, which
         :meth:`load` restores, ready for their ``report``); firmware loads records saved
-        with nothing in flight."""
+        with nothing in flight (:attr:`idle`)."""
         return self._native.save()
 
     def copy(self):
@@ -135,6 +135,14 @@ class Optimizer:
         """The outstanding tickets (handed out by :meth:`suggest`, not yet reported or
         cancelled), in hand-out order."""
         return self._native.in_flight
+
+    @property
+    def idle(self):
+        """Whether nothing is in flight: no ticket out, no cancelled candidate waiting to be
+        handed out again, every reported cost told to the optimizer. Only then is
+        :meth:`save` the record of :attr:`rust_type` that firmware loads (after a
+        :meth:`cancel`, :attr:`in_flight` is empty but the candidate still waits)."""
+        return self._native.idle
 
     @property
     def capacity(self):

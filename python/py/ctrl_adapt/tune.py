@@ -67,12 +67,19 @@ def write_record(optimizer: "ctrl_adapt.Optimizer", path: Union[str, os.PathLike
 
     On the board, ``ctrl_adapt::record::load::<T>(&bytes)`` with ``T`` the returned type
     (e.g. ``Cmaes<5, 8>``) continues from that state; ``best()`` is the best candidate.
-    Firmware runs one episode at a time: with tickets outstanding this raises ``ValueError``
-    (report or cancel them first; :meth:`ctrl_adapt.Optimizer.save` still checkpoints them)."""
+    Firmware runs one episode at a time: unless the optimizer is
+    :attr:`~ctrl_adapt.Optimizer.idle` (tickets outstanding, or a cancelled candidate waiting
+    to be handed out again) this raises ``ValueError`` (report them, or run the cancelled
+    one, first; :meth:`ctrl_adapt.Optimizer.save` still checkpoints them)."""
     if optimizer.in_flight:
         raise ValueError(
             f"write_record: tickets {list(optimizer.in_flight)} are in flight; the firmware loads "
             "records saved with nothing in flight (report or cancel them first)"
+        )
+    if not optimizer.idle:
+        raise ValueError(
+            "write_record: a cancelled candidate waits to be handed out again; the firmware "
+            "loads records saved with nothing in flight (run it first)"
         )
     data = optimizer.save()
     directory = os.path.dirname(os.path.abspath(path))
