@@ -1,17 +1,18 @@
 //! The hot path of the Python package's optimizers: `ask`, `tell`, `suggest` and `report`
-//! of every instance the package compiles, for the algorithms whose step costs more than
-//! the call from Python (the controlled random search, the two-phase method over it,
-//! CMA-ES and LineBO), compiled optimised.
+//! of every instance the package compiles, for every algorithm but ROCK* (the coordinate
+//! search, SRACOS, the diagonal CEM, the controlled random search, the two-phase method
+//! over it, CMA-ES and LineBO), compiled optimised.
 //!
 //! Why a crate of its own: the package compiles each algorithm at every dimension from 1 to
 //! [`MAX_DIMENSION`], and generic code is compiled in the crate that names its concrete
 //! types, at that crate's optimisation level. Optimising the whole package takes over
 //! 13 minutes of one core, almost all of it in the records' (de)serialisation code, which
-//! is not on the per-episode path; unoptimised, CMA-ES's ask + tell costs about 90 µs from
-//! Python at n = 18. So the package stays unoptimised and calls [`Steps`] for its steps:
-//! the impls of the algorithms above are written for every concrete type, so they (and
-//! the library code they reach) are compiled here, in release builds at opt-level 3; the
-//! others' impls are generic, compiled in the package like the rest of it.
+//! is not on the per-episode path; unoptimised, the steps of CRS, CMA-ES and LineBO cost
+//! an order of magnitude more than optimised (python/README.md has the table). So the
+//! package stays unoptimised and calls [`Steps`] for its steps: the impls of the algorithms
+//! above are written for every concrete type, so they (and the library code they reach)
+//! are compiled here, in release builds at opt-level 3; ROCK*'s impl is generic, compiled
+//! in the package like the rest of it.
 //!
 //! Optimised and unoptimised builds of the same Rust compute the same `f32`s (Rust does not
 //! reassociate or contract floating-point operations at any level), so the candidates stay
@@ -82,8 +83,8 @@ macro_rules! steps_body {
 
 /// ROCK*'s impl is generic: compiled in the crate that names the type (the package,
 /// unoptimised). Its step (a Gaussian process over its rollouts, and the search of its
-/// mean) costs milliseconds either way, against a build of its 64 instances that would add
-/// about a minute.
+/// mean) costs milliseconds; optimising its 64 instances would lengthen the build by about
+/// half of this crate's.
 impl<const N: usize, const M: usize> Steps<N> for InFlight<Rockstar<N, M>, N, IN_FLIGHT> {
     steps_body!(N);
 }
