@@ -383,11 +383,12 @@ where
     }
 }
 
-/// Builds `spec` at dimension `N`; `CRS` = 10(N + 1), `LAMBDA` = the CMA-ES population,
-/// `MEMORY` = 5N (ROCK*'s rollouts).
-fn build_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>(
-    spec: &Spec<'_>,
-) -> Result<Box<dyn Dynamic>, BuildError>
+/// The instances at dimension `N`: `CRS` = 10(N + 1), `LAMBDA` = the CMA-ES population,
+/// `MEMORY` = 5N (ROCK*'s rollouts). Their steps are compiled in `python/hot` (the bounds).
+struct At<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>;
+
+impl<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>
+    At<N, CRS, LAMBDA, MEMORY>
 where
     InFlight<CoordinateSearch<N>, N, IN_FLIGHT>: Steps<N>,
     InFlight<Sracos<N>, N, IN_FLIGHT>: Steps<N>,
@@ -397,99 +398,98 @@ where
     InFlight<Cmaes<N, LAMBDA>, N, IN_FLIGHT>: Steps<N>,
     InFlight<LineBo<N, LINE_BO_MEMORY>, N, IN_FLIGHT>: Steps<N>,
 {
-    let bounds = Bounds::<N>::try_new(vector(spec.lower, "lower")?, vector(spec.upper, "upper")?)?;
-    let start = match spec.start {
-        Some(start) => vector::<N>(start, "start")?,
-        None => (bounds.lower() + bounds.upper()) * 0.5,
-    };
-    if spec.start.is_some() && !spec.algorithm.takes_start() {
-        return Err(BuildError::Config(format!(
-            "{} samples the box first and takes no start",
-            spec.algorithm.name()
-        )));
-    }
-    let json = spec.config;
-    Ok(match spec.algorithm {
-        Algorithm::Coordinate => held(CoordinateSearch::<N>::try_new(
-            bounds,
-            start,
-            configured(CoordinateConfig::DEFAULT, json)?,
-        )?),
-        Algorithm::Sracos => held(Sracos::<N>::try_new(
-            bounds,
-            configured(SracosConfig::DEFAULT, json)?,
-        )?),
-        Algorithm::Cem => held(DiagonalCem::<N, CEM_SAMPLES, CEM_ELITES>::try_new(
-            bounds,
-            start,
-            configured(CemConfig::DEFAULT, json)?,
-        )?),
-        Algorithm::Crs => held(ControlledRandomSearch::<N, CRS>::try_new(
-            bounds,
-            configured(CrsConfig::DEFAULT, json)?,
-        )?),
-        Algorithm::TwoPhase => {
-            let (global, budget, local) = two_phase_config(json)?;
-            let crs = ControlledRandomSearch::<N, CRS>::try_new(bounds, global)?;
-            held(TwoPhase::try_new(crs, budget, local)?)
+    /// Builds `spec`.
+    fn build(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
+        let bounds =
+            Bounds::<N>::try_new(vector(spec.lower, "lower")?, vector(spec.upper, "upper")?)?;
+        let start = match spec.start {
+            Some(start) => vector::<N>(start, "start")?,
+            None => (bounds.lower() + bounds.upper()) * 0.5,
+        };
+        if spec.start.is_some() && !spec.algorithm.takes_start() {
+            return Err(BuildError::Config(format!(
+                "{} samples the box first and takes no start",
+                spec.algorithm.name()
+            )));
         }
-        Algorithm::Cmaes => held(Cmaes::<N, LAMBDA>::try_new(
-            bounds,
-            start,
-            configured(CmaesConfig::DEFAULT, json)?,
-        )?),
-        Algorithm::Rockstar => held(Rockstar::<N, MEMORY>::try_new(
-            bounds,
-            start,
-            configured(RockstarConfig::DEFAULT, json)?,
-        )?),
-        Algorithm::LineBo => held(LineBo::<N, LINE_BO_MEMORY>::try_new(
-            bounds,
-            start,
-            configured(LineBoConfig::DEFAULT, json)?,
-        )?),
-    })
-}
+        let json = spec.config;
+        Ok(match spec.algorithm {
+            Algorithm::Coordinate => held(CoordinateSearch::<N>::try_new(
+                bounds,
+                start,
+                configured(CoordinateConfig::DEFAULT, json)?,
+            )?),
+            Algorithm::Sracos => held(Sracos::<N>::try_new(
+                bounds,
+                configured(SracosConfig::DEFAULT, json)?,
+            )?),
+            Algorithm::Cem => held(DiagonalCem::<N, CEM_SAMPLES, CEM_ELITES>::try_new(
+                bounds,
+                start,
+                configured(CemConfig::DEFAULT, json)?,
+            )?),
+            Algorithm::Crs => held(ControlledRandomSearch::<N, CRS>::try_new(
+                bounds,
+                configured(CrsConfig::DEFAULT, json)?,
+            )?),
+            Algorithm::TwoPhase => {
+                let (global, budget, local) = two_phase_config(json)?;
+                let crs = ControlledRandomSearch::<N, CRS>::try_new(bounds, global)?;
+                held(TwoPhase::try_new(crs, budget, local)?)
+            }
+            Algorithm::Cmaes => held(Cmaes::<N, LAMBDA>::try_new(
+                bounds,
+                start,
+                configured(CmaesConfig::DEFAULT, json)?,
+            )?),
+            Algorithm::Rockstar => held(Rockstar::<N, MEMORY>::try_new(
+                bounds,
+                start,
+                configured(RockstarConfig::DEFAULT, json)?,
+            )?),
+            Algorithm::LineBo => held(LineBo::<N, LINE_BO_MEMORY>::try_new(
+                bounds,
+                start,
+                configured(LineBoConfig::DEFAULT, json)?,
+            )?),
+        })
+    }
 
-/// Loads a record of `algorithm` at dimension `N` (same sizes as [`build_at`]).
-fn load_at<const N: usize, const CRS: usize, const LAMBDA: usize, const MEMORY: usize>(
-    algorithm: Algorithm,
-    bytes: &[u8],
-) -> Result<Box<dyn Dynamic>, RecordError>
-where
-    InFlight<CoordinateSearch<N>, N, IN_FLIGHT>: Steps<N>,
-    InFlight<Sracos<N>, N, IN_FLIGHT>: Steps<N>,
-    InFlight<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>, N, IN_FLIGHT>: Steps<N>,
-    InFlight<ControlledRandomSearch<N, CRS>, N, IN_FLIGHT>: Steps<N>,
-    InFlight<TwoPhase<ControlledRandomSearch<N, CRS>, N>, N, IN_FLIGHT>: Steps<N>,
-    InFlight<Cmaes<N, LAMBDA>, N, IN_FLIGHT>: Steps<N>,
-    InFlight<LineBo<N, LINE_BO_MEMORY>, N, IN_FLIGHT>: Steps<N>,
-{
-    match algorithm {
-        Algorithm::Coordinate => held_record::<CoordinateSearch<N>, N>(bytes),
-        Algorithm::Sracos => held_record::<Sracos<N>, N>(bytes),
-        Algorithm::Cem => held_record::<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>, N>(bytes),
-        Algorithm::Crs => held_record::<ControlledRandomSearch<N, CRS>, N>(bytes),
-        Algorithm::TwoPhase => held_record::<TwoPhase<ControlledRandomSearch<N, CRS>, N>, N>(bytes),
-        Algorithm::Cmaes => held_record::<Cmaes<N, LAMBDA>, N>(bytes),
-        Algorithm::Rockstar => held_record::<Rockstar<N, MEMORY>, N>(bytes),
-        Algorithm::LineBo => held_record::<LineBo<N, LINE_BO_MEMORY>, N>(bytes),
+    /// Loads a record of `algorithm`.
+    fn load(algorithm: Algorithm, bytes: &[u8]) -> Result<Box<dyn Dynamic>, RecordError> {
+        match algorithm {
+            Algorithm::Coordinate => held_record::<CoordinateSearch<N>, N>(bytes),
+            Algorithm::Sracos => held_record::<Sracos<N>, N>(bytes),
+            Algorithm::Cem => held_record::<DiagonalCem<N, CEM_SAMPLES, CEM_ELITES>, N>(bytes),
+            Algorithm::Crs => held_record::<ControlledRandomSearch<N, CRS>, N>(bytes),
+            Algorithm::TwoPhase => {
+                held_record::<TwoPhase<ControlledRandomSearch<N, CRS>, N>, N>(bytes)
+            }
+            Algorithm::Cmaes => held_record::<Cmaes<N, LAMBDA>, N>(bytes),
+            Algorithm::Rockstar => held_record::<Rockstar<N, MEMORY>, N>(bytes),
+            Algorithm::LineBo => held_record::<LineBo<N, LINE_BO_MEMORY>, N>(bytes),
+        }
+    }
+
+    /// `LAMBDA`, the CMA-ES population compiled in.
+    fn population() -> usize {
+        LAMBDA
     }
 }
 
-/// `Some($f::<n, 10(n + 1), λ, 5n>(args))` for the dimension `$n`, `None` outside
-/// 1..=[`MAX_DIMENSION`]: the arguments of [`build_at`] and [`load_at`], over the table of
-/// [`every_dimension`] (λ = 4 + ⌊3 ln n⌋, written out).
+/// `Some(At::<n, 10(n + 1), λ, 5n>::$method(args))` for the dimension `$n`, `None` outside
+/// 1..=[`MAX_DIMENSION`], over the table of [`every_dimension`] (λ = 4 + ⌊3 ln n⌋, written
+/// out).
 macro_rules! at_dimension {
-    ($n:expr, $f:ident, $($arg:expr),*) => {
-        every_dimension!(at_dimension_arms!($n, $f, ($($arg),*)))
+    ($n:expr, $method:ident, $($arg:expr),*) => {
+        every_dimension!(at_dimension_arms!($n, $method, ($($arg),*)))
     };
 }
 
 macro_rules! at_dimension_arms {
-    (($n:expr, $f:ident, $args:tt); $($dim:literal $lambda:literal),+) => {
+    (($n:expr, $method:ident, $args:tt); $($dim:literal $lambda:literal),+) => {
         match $n {
-            $($dim => Some($f::<$dim, { 10 * ($dim + 1) }, $lambda, { 5 * $dim }> $args),)+
+            $($dim => Some(At::<$dim, { 10 * ($dim + 1) }, $lambda, { 5 * $dim }>::$method $args),)+
             _ => None,
         }
     };
@@ -498,16 +498,13 @@ macro_rules! at_dimension_arms {
 /// The CMA-ES population compiled in at dimension `n` (the table of [`every_dimension`];
 /// the package's tests check it against the library's rule).
 fn compiled_population(n: usize) -> Option<usize> {
-    fn population<const N: usize, const C: usize, const L: usize, const M: usize>() -> usize {
-        L
-    }
     at_dimension!(n, population,)
 }
 
 /// Builds `spec` at the dimension of its bounds.
 pub fn build(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
     let n = spec.lower.len();
-    at_dimension!(n, build_at, spec).unwrap_or_else(|| {
+    at_dimension!(n, build, spec).unwrap_or_else(|| {
         Err(BuildError::Dimension(format!(
             "{n} parameters: the package is compiled for 1 to {MAX_DIMENSION}"
         )))
@@ -520,7 +517,7 @@ pub fn load(bytes: &[u8]) -> Result<(Algorithm, Box<dyn Dynamic>), RecordError> 
     // Every other error than a mismatched shape is the record's own: report it at once.
     for n in 1..=MAX_DIMENSION {
         for algorithm in Algorithm::ALL {
-            match at_dimension!(n, load_at, algorithm, bytes) {
+            match at_dimension!(n, load, algorithm, bytes) {
                 Some(Ok(o)) => return Ok((algorithm, o)),
                 Some(Err(RecordError::Shape)) | None => {}
                 Some(Err(e)) => return Err(e),
