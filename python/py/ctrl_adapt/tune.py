@@ -179,8 +179,6 @@ class CtrlAdaptSearch(Searcher):
         self.cancelled = 0
         #: The most candidates that were out at once.
         self.peak_in_flight = 0
-        # Cancelled candidates not yet handed out again (the optimizer hands them out first).
-        self._waiting = 0
         if space:
             self._set_space(space)
 
@@ -250,7 +248,6 @@ class CtrlAdaptSearch(Searcher):
         if handed is None:
             return None
         ticket, theta = handed
-        self._waiting = max(self._waiting - 1, 0)
         self._trials[trial_id] = ticket
         self.peak_in_flight = max(self.peak_in_flight, len(opt.in_flight))
         return self._configuration(theta)
@@ -273,7 +270,6 @@ class CtrlAdaptSearch(Searcher):
         if cost is None and self._penalty is None:
             opt.cancel(ticket)
             self.cancelled += 1
-            self._waiting += 1
             return
         if cost is None:
             value = cost = float(self._penalty)
@@ -299,11 +295,6 @@ class CtrlAdaptSearch(Searcher):
         and return its Rust type. Raises ``ValueError`` while a trial is running or a
         cancelled candidate waits to be handed out again: the optimizer's record then holds
         its tickets, which the firmware's type does not load."""
-        if self._waiting:
-            raise ValueError(
-                "write_record: a cancelled candidate waits to be handed out again; the firmware "
-                "loads records saved with nothing in flight (run it, or write after the search)"
-            )
         return write_record(self._optimizer, path)
 
     # -- checkpoints ----------------------------------------------------------------------
