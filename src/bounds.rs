@@ -166,6 +166,24 @@ impl<const N: usize> UnitMap<N> {
         x
     }
 
+    /// x = (θ − centre) / half-width, clamped to [−1, 1]ⁿ: the unit point of a θ inside the
+    /// box. Without the clamp, rounding puts it past ±1 on a box narrow relative to its
+    /// offset ([100, 100.001] maps 100 to about −1.02 in `f32`): a searcher that stores such
+    /// a point writes a state its own record validation refuses.
+    #[inline(always)]
+    pub(crate) fn unit_in_box(&self, theta: &Vector<N>) -> Vector<N> {
+        let mut x = self.unit_of(theta);
+        // Comparisons, not `f32::clamp` (see `Bounds::clamp`); NaN stays NaN.
+        x.apply(|v| {
+            if *v > 1.0 {
+                *v = 1.0;
+            } else if *v < -1.0 {
+                *v = -1.0;
+            }
+        });
+        x
+    }
+
     /// θ = centre + half-width ∘ x, projected onto the box (rounding, or x outside
     /// [−1, 1]ⁿ).
     pub(crate) fn theta_of(&self, x: &Vector<N>) -> Vector<N> {

@@ -257,6 +257,9 @@ pub struct CheckpointStore<F> {
     /// Slots known to hold an intact checkpoint (loaded, or written and read back by this
     /// store); a save into a slot not known so checks it first.
     known_intact: [bool; 2],
+    /// Why the last [`load`](Self::load) passed over the newest checkpoint for the other
+    /// slot's, if it did.
+    passed_over: Option<CheckpointError>,
 }
 
 impl<F: NorFlash> CheckpointStore<F> {
@@ -275,6 +278,7 @@ impl<F: NorFlash> CheckpointStore<F> {
             newest: None,
             next_generation: 1,
             known_intact: [false; 2],
+            passed_over: None,
         })
     }
 
@@ -287,6 +291,16 @@ impl<F: NorFlash> CheckpointStore<F> {
     /// [`load`](Self::load) or [`save`](Self::save), or when there is none).
     pub fn generation(&self) -> Option<u32> {
         self.newest.flatten().map(|(_, generation)| generation)
+    }
+
+    /// Why the last [`load`](Self::load) returned the older checkpoint instead of the newest
+    /// one: the newest was intact (its checksum right) but refused
+    /// ([`CheckpointError::Record`]: a state its type's checks reject, or of another
+    /// type, sizes or format version). `None` when the last load took the newest checkpoint,
+    /// found none, or passed over only a torn or corrupted slot (a power cut during a save
+    /// leaves one; that is the store working, not an event to report). Boot code can log it.
+    pub fn passed_over(&self) -> Option<CheckpointError> {
+        self.passed_over
     }
 
     fn commit(&mut self, slot: usize, item: &mut [u8]) -> SlotState {
@@ -416,8 +430,11 @@ impl<F: NorFlash> CheckpointStore<F> {
     /// Boot: the value of the newest intact checkpoint, `None` when there is none (erased
     /// flash, no save ever completed, or both slots corrupted beyond repair). A slot spoilt
     /// by a power cut or a corrupted byte is passed over for the other one. An intact
-    /// checkpoint of another type, sizes or format version is an error
-    /// ([`CheckpointError::Record`]), not skipped: to start afresh, just save; the refused
+    /// checkpoint (its checksum right) that is refused — of another type, sizes or format
+    /// version, or holding a state its type's checks reject — is passed over for the other
+    /// slot's checkpoint when that one loads ([`passed_over`](Self::passed_over) then says
+    /// why), and is otherwise an error ([`CheckpointError::Record`]), never `Ok(None)`, which
+    /// boot code would take for erased flash: to start afresh, just save; the refused
     /// checkpoint is kept until that save has replaced it. A flash driver error is
     /// [`CheckpointError::Flash`], and nothing is assumed about the slots.
     pub fn load<T: Persistent>(
@@ -439,6 +456,7 @@ impl<F: NorFlash> CheckpointStore<F> {
             [0, 1]
         };
         let mut refusal = None;
+        self.passed_over = None;
         for slot in order {
             let SlotState::Committed(commit) = states[slot] else {
                 continue;
@@ -448,15 +466,22 @@ impl<F: NorFlash> CheckpointStore<F> {
                 .and_then(|bytes| record::load::<T>(bytes).map_err(CheckpointError::from));
             match outcome {
                 Ok(value) => {
+                    self.passed_over = refusal.map(|(e, _, _)| e);
                     self.newest = Some(Some((slot, commit.generation)));
                     self.known_intact = [false; 2];
                     self.known_intact[slot] = true;
                     return Ok(Some(value));
                 }
-                // Another type, sizes or version: say so rather than fall back silently.
+                // Intact but refused (another type, sizes or version; a state that fails
+                // its checks or does not decode, which only a faulty writer leaves): said,
+                // not taken for a torn slot.
                 Err(
-                    e @ (CheckpointError::Record(RecordError::Shape)
-                    | CheckpointError::Record(RecordError::Version { .. })
+                    e @ (CheckpointError::Record(
+                        RecordError::Shape
+                        | RecordError::Version { .. }
+                        | RecordError::Invalid(_)
+                        | RecordError::Encoding,
+                    )
                     | CheckpointError::BufferTooSmall),
                 ) => refusal = refusal.or(Some((e, slot, commit.generation))),
                 // The driver failed: falling back could load an older state and let the
@@ -482,7 +507,9 @@ impl<F: NorFlash> CheckpointStore<F> {
 
     /// Saves `value` as the newest checkpoint: into the slot that does not hold the newest
     /// intact one, commit last, then reads it back. `Ok` means the next [`load`](Self::load)
-    /// finds exactly this checkpoint. When this returns an error (a power cut, a full slot, a
+    /// finds exactly this checkpoint. A value that `load` would refuse (one that fails its
+    /// type's [`validate`](Persistent::validate)) is refused before anything is written
+    /// ([`CheckpointError::Record`] with [`RecordError::Invalid`]). When this returns an error (a power cut, a full slot, a
     /// write that failed or read back wrong twice) the previous checkpoint is still the one
     /// `load` finds. The target slot is erased first when it holds no intact commit and is
     /// not blank, and erased and written again once when a write fails or reads back wrong

@@ -191,7 +191,12 @@ fn encoding(e: postcard::Error) -> RecordError {
 }
 
 /// Writes `value` as a record into `buf` and returns the part of `buf` it fills.
+///
+/// A value that [`load`] would refuse (one that fails [`Persistent::validate`]) is refused
+/// here, as [`RecordError::Invalid`], and nothing is written: a record that saves always
+/// loads back, equal.
 pub fn save<'b, T: Persistent>(value: &T, buf: &'b mut [u8]) -> Result<&'b mut [u8], RecordError> {
+    value.validate().map_err(RecordError::Invalid)?;
     let body_room = buf
         .len()
         .checked_sub(4)
@@ -726,6 +731,112 @@ mod tests {
             .unwrap()
             .into();
         check_resumes_bit_identically(s, 40, &[3, 20]);
+    }
+
+    /// One coordinate's interval: ordinary, narrow relative to its offset (down to a few
+    /// ulps: [100, 100.001] and the like), or very wide (up to 10³⁰).
+    fn any_interval() -> impl proptest::strategy::Strategy<Value = (f32, f32)> {
+        use proptest::prelude::*;
+        prop_oneof![
+            (-1e3f32..1e3, 1e-2f32..1e3).prop_map(|(lo, w)| (lo, lo + w)),
+            (1f32..1e6, any::<bool>(), 2.0f32..8.0).prop_map(|(m, negative, e)| {
+                let lo = if negative { -m } else { m };
+                let hi = lo + m * libm::powf(10.0, -e);
+                (lo, if hi > lo { hi } else { lo.next_up() })
+            }),
+            (-1e3f32..1e3, 0.0f32..30.0).prop_map(|(lo, e)| (lo, lo + libm::powf(10.0, e))),
+        ]
+    }
+
+    /// A box of [`any_interval`]s and a start inside it.
+    fn any_box_and_start<const N: usize>()
+    -> impl proptest::strategy::Strategy<Value = (Bounds<N>, Vector<N>)> {
+        use proptest::prelude::*;
+        (
+            prop::array::uniform::<_, N>(any_interval()),
+            prop::array::uniform::<_, N>(0.0f32..=1.0),
+        )
+            .prop_map(|(intervals, frac)| {
+                let bounds = Bounds::try_new(
+                    Vector::from(intervals.map(|(lo, _)| lo)),
+                    Vector::from(intervals.map(|(_, hi)| hi)),
+                )
+                .unwrap();
+                let start = Vector::from_fn(|i, _| {
+                    let (lo, hi) = (bounds.lower()[i], bounds.upper()[i]);
+                    (lo + frac[i] * (hi - lo)).clamp(lo, hi)
+                });
+                (bounds, start)
+            })
+    }
+
+    /// `steps` ask/tell steps of `s` on a finite cost of the box's unit coordinates, then
+    /// (if `pending`) one more ask; the state must save, load back equal and save again to
+    /// the same bytes.
+    fn check_reloads<const N: usize, O>(mut s: O, steps: usize, pending: bool, seed: u64)
+    where
+        O: Optimizer<N> + Persistent + PartialEq + core::fmt::Debug,
+    {
+        let mut r = rng(seed);
+        let (lower, upper) = (*s.bounds().lower(), *s.bounds().upper());
+        for _ in 0..steps {
+            let Ok(theta) = s.ask(&mut r) else { break };
+            let c: f64 = (0..N)
+                .map(|i| {
+                    let u = (f64::from(theta[i]) - f64::from(lower[i]))
+                        / (f64::from(upper[i]) - f64::from(lower[i]));
+                    (u - 0.3).powi(2)
+                })
+                .sum();
+            s.tell(c as f32 + 0.01 * unit_f32(&mut r)).unwrap();
+        }
+        if pending {
+            let _ = s.ask(&mut r);
+        }
+        let record = bytes(&s);
+        let loaded: O = load(&record).unwrap_or_else(|e| panic!("{e:?} for {s:?}"));
+        assert_eq!(loaded, s);
+        assert_eq!(bytes(&loaded), record);
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(96))]
+
+        /// Any state reachable through the public API saves and loads back bit-identical,
+        /// for every optimizer, over boxes ordinary, narrow relative to their offset and
+        /// very wide, with and without a candidate pending.
+        #[test]
+        fn every_optimizer_reloads_on_any_box(
+            (bounds, start) in any_box_and_start::<2>(),
+            steps in 0usize..14,
+            pending: bool,
+            seed: u64,
+        ) {
+            let coordinate = CoordinateConfig::DEFAULT;
+            check_reloads(CoordinateSearch::try_new(bounds, start, coordinate).unwrap(), steps, pending, seed);
+            let crs = || ControlledRandomSearch::<2, 6>::try_new(bounds, CrsConfig::DEFAULT).unwrap();
+            check_reloads(crs(), steps, pending, seed);
+            check_reloads(TwoPhase::try_new(crs(), 8, coordinate).unwrap(), steps, pending, seed);
+            check_reloads(Sracos::<2, 2, 8>::try_new(bounds, SracosConfig::DEFAULT).unwrap(), steps, pending, seed);
+            check_reloads(Racos::<2, 2, 8>::try_new(bounds, SracosConfig::DEFAULT).unwrap(), steps, pending, seed);
+            check_reloads(DiagonalCem::<2, 4, 2>::try_new(bounds, start, CemConfig::DEFAULT).unwrap(), steps, pending, seed);
+            check_reloads(Cmaes::<2, 4>::try_new(bounds, start, CmaesConfig::DEFAULT).unwrap(), steps, pending, seed);
+            check_reloads(Rockstar::<2, 8>::try_new(bounds, start, RockstarConfig::DEFAULT).unwrap(), steps, pending, seed);
+            for directions in [LineDirections::Coordinate, LineDirections::Random] {
+                let config = LineBoConfig { directions, threshold: Some(0.5), ..LineBoConfig::DEFAULT };
+                check_reloads(LineBo::<2, 6>::try_new(bounds, start, config).unwrap(), steps, pending, seed);
+            }
+        }
+    }
+
+    /// The case found on a narrow box far from zero: LineBO's normalised start rounded past
+    /// ±1 and its record was refused on load (`Invalid("origin")`).
+    #[test]
+    fn line_bo_on_a_narrow_offset_box_reloads() {
+        let bounds = Bounds::<1>::try_new([100.0].into(), [100.001].into()).unwrap();
+        let s = LineBo::<1, 8>::try_new(bounds, [100.0].into(), LineBoConfig::DEFAULT).unwrap();
+        assert_eq!(load::<LineBo<1, 8>>(&bytes(&s)), Ok(s.clone()));
+        check_reloads(s, 6, true, 1);
     }
 
     fn sample_record() -> (Vec<u8>, Cmaes<3, 7>) {

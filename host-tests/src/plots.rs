@@ -18,6 +18,12 @@ pub struct Curve<'a> {
     pub values: &'a [f64],
     /// The best value after each episode.
     pub best: &'a [f64],
+    /// The legend of `best`: what it is (say where it was measured when another figure
+    /// re-runs the same θ and reports another value).
+    pub best_label: &'a str,
+    /// A log-scaled y axis (positive costs spanning decades); non-positive values are left
+    /// out.
+    pub log_y: bool,
     /// A horizontal reference line (the success threshold), if any.
     pub threshold: Option<(f64, &'a str)>,
 }
@@ -45,15 +51,32 @@ fn range_of(values: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 fn curve_panel(area: &DrawingArea<SVGBackend, Shift>, curve: &Curve, y_label: &str) -> PlotResult {
-    let n = curve.values.len().max(2) as f64;
     let extra = curve.threshold.map(|(t, _)| t);
-    let (lo, hi) = range_of(curve.values.iter().chain(curve.best).copied().chain(extra));
-    let mut chart = ChartBuilder::on(area)
-        .caption(curve.title, ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(35)
-        .y_label_area_size(50)
-        .build_cartesian_2d(1f64..n, lo..hi)?;
+    let all = || curve.values.iter().chain(curve.best).copied().chain(extra);
+    if curve.log_y {
+        let positive = || all().filter(|v| v.is_finite() && *v > 0.0);
+        let lo = positive().fold(f64::INFINITY, f64::min);
+        let hi = positive().fold(f64::NEG_INFINITY, f64::max);
+        let (lo, hi) = if lo.is_finite() && hi > lo {
+            (lo / 1.5, hi * 1.5)
+        } else {
+            (1.0, 10.0)
+        };
+        let mut chart = chart_on(area, curve)
+            .build_cartesian_2d(1f64..curve.values.len().max(2) as f64, (lo..hi).log_scale())?;
+        chart
+            .configure_mesh()
+            .x_desc("episode")
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_desc(format!("{y_label} (log scale)"))
+            .y_label_formatter(&|y| format!("{y:.0e}"))
+            .light_line_style(WHITE)
+            .draw()?;
+        return draw_curve(&mut chart, curve, |v| v > 0.0);
+    }
+    let (lo, hi) = range_of(all());
+    let mut chart =
+        chart_on(area, curve).build_cartesian_2d(1f64..curve.values.len().max(2) as f64, lo..hi)?;
     chart
         .configure_mesh()
         .x_desc("episode")
@@ -61,9 +84,41 @@ fn curve_panel(area: &DrawingArea<SVGBackend, Shift>, curve: &Curve, y_label: &s
         .y_desc(y_label)
         .light_line_style(WHITE)
         .draw()?;
+    draw_curve(&mut chart, curve, |_| true)
+}
+
+fn chart_on<'a, 'b>(
+    area: &'a DrawingArea<SVGBackend<'b>, Shift>,
+    curve: &Curve,
+) -> ChartBuilder<'a, 'b, SVGBackend<'b>> {
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(curve.title, ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(if curve.log_y { 60 } else { 50 });
+    builder
+}
+
+/// The episodes (dots), the best so far (a line) and the threshold of `curve`, with the
+/// points `keep` accepts (a log axis cannot show values ≤ 0).
+fn draw_curve<'a, Y>(
+    chart: &mut ChartContext<
+        'a,
+        SVGBackend<'a>,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, Y>,
+    >,
+    curve: &Curve,
+    keep: impl Fn(f64) -> bool,
+) -> PlotResult
+where
+    Y: Ranged<ValueType = f64>,
+{
+    let n = curve.values.len().max(2) as f64;
     let xs = |v: &[f64]| -> Vec<(f64, f64)> {
         v.iter()
             .enumerate()
+            .filter(|(_, y)| keep(**y))
             .map(|(k, y)| ((k + 1) as f64, *y))
             .collect()
     };
@@ -77,7 +132,7 @@ fn curve_panel(area: &DrawingArea<SVGBackend, Shift>, curve: &Curve, y_label: &s
         .legend(|(x, y)| Circle::new((x + 10, y), 3, BLUE_ISH.filled()));
     chart
         .draw_series(LineSeries::new(xs(curve.best), ORANGE.stroke_width(2)))?
-        .label("best so far")
+        .label(curve.best_label)
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], ORANGE.stroke_width(2)));
     if let Some((t, name)) = curve.threshold {
         chart

@@ -428,6 +428,95 @@ fn corrupted_bytes_fall_back_to_the_newest_intact_checkpoint() {
     assert_eq!(bytes(&found), bytes(&other));
 }
 
+/// A value whose checks refuse an odd count; [`Lax`] has its shape and no checks, so it
+/// writes the intact but invalid records a faulty writer would.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+struct Strict {
+    count: u32,
+}
+
+impl Persistent for Strict {
+    const SHAPE: Shape = Shape::new(*b"STRC", &[]);
+
+    fn validate(&self) -> Result<(), ctrl_adapt::Error> {
+        if self.count % 2 == 0 {
+            Ok(())
+        } else {
+            Err(ctrl_adapt::Error::InvalidParameter("count"))
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+struct Lax {
+    count: u32,
+}
+
+impl Persistent for Lax {
+    const SHAPE: Shape = Strict::SHAPE;
+
+    fn validate(&self) -> Result<(), ctrl_adapt::Error> {
+        Ok(())
+    }
+}
+
+/// Checks: a save of a value that `load` would refuse returns an error and writes nothing
+/// (the previous checkpoint is still the one found); an intact newest checkpoint that fails
+/// its checks is passed over for the older one, and `passed_over` says why; with no older
+/// one, `load` says why instead of `Ok(None)` (erased flash), and a save afresh then works.
+#[test]
+fn a_checkpoint_that_cannot_come_back_is_refused_and_said() {
+    let invalid = CheckpointError::Record(RecordError::Invalid(
+        ctrl_adapt::Error::InvalidParameter("count"),
+    ));
+    let (mut rec, mut item) = ([0u8; RECORD], [0u8; ITEM]);
+    let mut flash = erased(Programming::WriteOnce);
+    let mut s = store(&mut flash);
+    s.save(&Strict { count: 2 }, &mut rec, &mut item).unwrap();
+    assert_eq!(
+        s.save(&Strict { count: 3 }, &mut rec, &mut item),
+        Err(invalid)
+    );
+    let mut s = store(&mut flash);
+    assert_eq!(
+        s.load::<Strict>(&mut rec, &mut item),
+        Ok(Some(Strict { count: 2 }))
+    );
+    assert_eq!(s.passed_over(), None);
+
+    // A faulty writer's record, newest: the older checkpoint, and why.
+    store(&mut flash)
+        .save(&Lax { count: 5 }, &mut rec, &mut item)
+        .unwrap();
+    let mut s = store(&mut flash);
+    assert_eq!(
+        s.load::<Strict>(&mut rec, &mut item),
+        Ok(Some(Strict { count: 2 }))
+    );
+    assert_eq!(s.passed_over(), Some(invalid));
+    // The next save replaces the refused one; the store then loads it without comment.
+    s.save(&Strict { count: 4 }, &mut rec, &mut item).unwrap();
+    let mut s = store(&mut flash);
+    assert_eq!(
+        s.load::<Strict>(&mut rec, &mut item),
+        Ok(Some(Strict { count: 4 }))
+    );
+    assert_eq!(s.passed_over(), None);
+
+    // Alone on the flash, the refused checkpoint is an error, not "nothing saved".
+    let mut flash = erased(Programming::WriteOnce);
+    store(&mut flash)
+        .save(&Lax { count: 7 }, &mut rec, &mut item)
+        .unwrap();
+    let mut s = store(&mut flash);
+    assert_eq!(s.load::<Strict>(&mut rec, &mut item), Err(invalid));
+    s.save(&Strict { count: 8 }, &mut rec, &mut item).unwrap();
+    assert_eq!(
+        store(&mut flash).load::<Strict>(&mut rec, &mut item),
+        Ok(Some(Strict { count: 8 }))
+    );
+}
+
 /// Saves `l` after each of `saves` more episodes into `flash`, booting afresh before each
 /// save, and checks that every save succeeds and that a fresh boot then loads exactly it.
 fn save_and_read_back<O>(

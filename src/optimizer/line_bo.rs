@@ -417,7 +417,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
             config,
             unit,
             start,
-            origin: unit.unit_of(&start),
+            origin: unit.unit_in_box(&start),
             lines: 0,
             line: None,
             posterior: Posterior {
@@ -518,7 +518,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     fn safe_interval(&self, line: &Line<N>, threshold: f32) -> Option<(usize, usize)> {
         let o = line.origin_index();
         let safe = |g: usize| self.bounds_at(g).1 <= threshold;
-        if !(safe(o) || self.origin == self.unit.unit_of(&self.start)) {
+        if !(safe(o) || self.origin == self.unit.unit_in_box(&self.start)) {
             return None;
         }
         let mut lo = o;
@@ -641,7 +641,7 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
     /// Abandons the line when its safe set is empty: the next line starts from θ⁰, the one
     /// point safe by assumption.
     fn fall_back(&mut self) {
-        self.origin = self.unit.unit_of(&self.start);
+        self.origin = self.unit.unit_in_box(&self.start);
         self.line = None;
     }
 
@@ -820,7 +820,7 @@ impl<const N: usize, const M: usize> Optimizer<N> for LineBo<N, M> {
 
     fn tell(&mut self, cost: f32) -> Result<(), Error> {
         let theta = self.ledger.accept(cost)?;
-        let x = self.unit.unit_of(&theta);
+        let x = self.unit.unit_in_box(&theta);
         self.gp
             .append(&x, cost, &self.config.kernel(), &self.origin);
         if let Some(mut line) = self.line {
