@@ -238,7 +238,7 @@ fn auv_demo(o: &Options) -> Result<(), Box<dyn std::error::Error>> {
                 title: "phase 1: CRS in the simulator (0.5 m/s)",
                 values: &gv,
                 best: &gb,
-                best_label: "best so far, in the simulator's current",
+                best_label: "best single episode so far (simulator; the table re-runs it)",
                 log_y: false,
                 threshold: Some((-1.0, "J = -1 (within 1 m)")),
             },
