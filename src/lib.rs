@@ -94,6 +94,10 @@ const _: () = {
     assert_format::<model::RlsModel<6, 3, 14>>();
     assert_format::<model::ModelConfig>();
     assert_format::<model::Affine>();
+    assert_format::<model::ModelBasedConfig>();
+    assert_format::<model::Source>();
+    assert_format::<model::Proposal<3>>();
+    assert_format::<model::ModelBased<CoordinateSearch<3>, 3>>();
     assert_format::<cost::SurveyCost>();
     assert_format::<cost::QuadraticCost<3>>();
     assert_format::<cost::ApexHeightCost>();

@@ -10,7 +10,10 @@
 //!   of the state and the command, x' = x + Wᵀ·z(x, u), fitted every tick by regularised
 //!   recursive least squares with a forgetting factor ([`rls`]);
 //! * [`imagine_episode`] and [`rollout`]: the controller, its correction θ and the cost
-//!   shaper run against the model instead of the plant ([`imagine`]).
+//!   shaper run against the model instead of the plant ([`imagine`]);
+//! * [`ModelBased`]: any optimizer searching the model in a trust region around the best
+//!   real θ, its candidate screened by predicted cost, with a model-free fallback
+//!   ([`learner`]).
 //!
 //! # The model class and its limits
 //! PILCO and Black-DROPS use Gaussian processes: their cost grows with the data (PILCO's
@@ -33,9 +36,11 @@
 //!   learner should keep its search near θ the robot has run (a trust region).
 
 pub mod imagine;
+pub mod learner;
 pub mod rls;
 
 pub use imagine::{imagine_episode, rollout};
+pub use learner::{ModelBased, ModelBasedConfig, Proposal, Source};
 pub use rls::{ModelConfig, RlsModel};
 
 use crate::vector::Vector;

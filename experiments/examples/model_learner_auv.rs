@@ -1,4 +1,5 @@
-//! A prototype of a model-based learner on the AUV survey (not a library type yet): after
+//! A model-based learner on the AUV survey, as a research prototype and through the
+//! library's `model::ModelBased` (the last row, which must equal the chosen setting's): after
 //! every real episode the `RlsModel` is refitted on its ticks, CMA-ES searches
 //! `imagine_episode`'s predicted cost inside a trust region around the best real θ, and the
 //! model's best is run on the robot only if its predicted cost passes a threshold and beats
@@ -26,7 +27,10 @@
 
 use ctrl_adapt::controller::Controller;
 use ctrl_adapt::cost::{Shaper, SurveyCost};
-use ctrl_adapt::model::{AffineWith, ModelConfig, Regressors, RlsModel, imagine_episode};
+use ctrl_adapt::model::{
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Regressors, RlsModel, Source,
+    imagine_episode,
+};
 use ctrl_adapt::optimizer::{Bounds, Cmaes, CmaesConfig, Optimizer, Vector};
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
@@ -265,6 +269,84 @@ fn learn(seed: u64, settings: Settings) -> Run {
     }
 }
 
+/// The same loop through the library's `ModelBased` (the chosen setting only): its rows
+/// must equal the prototype's.
+fn learn_with_library(seed: u64, settings: Settings) -> Run {
+    let map = AffineWith::new(features);
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let mut auv = plant(AuvConfig::REAL, seed);
+    let mut model = RlsModel::<6, 3, R>::try_new(ModelConfig::DEFAULT).unwrap();
+    let fit = |model: &mut RlsModel<6, 3, R>, e: &Episode| {
+        for (k, u) in e.commands.iter().enumerate() {
+            model
+                .update(&map, &e.states[k], u, &e.states[k + 1])
+                .unwrap();
+        }
+    };
+    let bare = run(&Vector::zeros(), &mut auv);
+    fit(&mut model, &bare);
+    let start = bare.states[0];
+    let fallback = auv_task::coordinate_search(Vector::zeros(), BUDGET as u32).unwrap();
+    let config = ModelBasedConfig {
+        initial_radius: settings.radius,
+        margin: 0.2 * bare.cost,
+        inner_evaluations: INNER_BUDGET,
+        ..ModelBasedConfig::DEFAULT
+    };
+    let mut learner = ModelBased::try_new(auv_task::bounds(), fallback, config).unwrap();
+    learner.record(Vector::zeros(), bare.cost).unwrap();
+    learner.set_reference(bare.cost).unwrap();
+    let mut costs = vec![bare.cost];
+    let mut source = vec!['b'];
+    for _ in 0..settings.explorations {
+        let theta = uniform(&mut rng, settings.explore);
+        let e = run(&theta, &mut auv);
+        fit(&mut model, &e);
+        learner.record(theta, e.cost).unwrap();
+        costs.push(e.cost);
+        source.push('e');
+    }
+    let inner = |trust: Bounds<P>, centre: Vector<P>| {
+        let config = CmaesConfig {
+            initial_sigma: 0.5,
+            max_evaluations: INNER_BUDGET,
+            ..CmaesConfig::DEFAULT
+        };
+        Cmaes::<P, 12>::try_new(trust, centre, config)
+    };
+    let mut from_model = 0;
+    while costs.len() < BUDGET {
+        let predict = |theta: &Vector<P>| {
+            let mut controller = auv_task::controller();
+            let mut shaper = SurveyCost::try_new(RADIUS).unwrap();
+            imagine_episode(
+                &model,
+                &map,
+                &start,
+                240,
+                DT,
+                &mut controller,
+                theta,
+                &mut shaper,
+                |x| Vector::<3>::new(x[0], x[1], x[2]),
+            )
+        };
+        let proposal = learner.propose(&mut rng, inner, predict).unwrap();
+        let e = run(&proposal.theta, &mut auv);
+        fit(&mut model, &e);
+        learner.tell(e.cost).unwrap();
+        let chose_model = matches!(proposal.source, Source::Model(_));
+        from_model += usize::from(chose_model);
+        source.push(if chose_model { 'm' } else { 'f' });
+        costs.push(e.cost);
+    }
+    Run {
+        costs,
+        from_model,
+        source,
+    }
+}
+
 /// The coordinate search alone from θ = 0 (the bare PD is its first candidate).
 fn coordinate(seed: u64) -> Run {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
@@ -387,4 +469,19 @@ fn main() {
             &runs,
         );
     }
+    let chosen = Settings {
+        radius: 0.15,
+        explore: 0.05,
+        explorations: 3,
+        screen_exploration: false,
+        min_rho: -1.0,
+    };
+    let runs: Vec<Run> = seeds
+        .iter()
+        .map(|&s| learn_with_library(s, chosen))
+        .collect();
+    summary(
+        "library `ModelBased`, r₀ = 0.15, 3 explorations ±0.05",
+        &runs,
+    );
 }
