@@ -19,7 +19,8 @@
 //! [−1, 1]^18; r starts at r₀, grows by 1.5 (to at most 1) after an episode that improves
 //! the best real cost and shrinks by 0.6 (to at least 0.05) otherwise. Optionally the
 //! model's candidate is considered only if the model ranks the real episodes so far with
-//! Spearman ρ ≥ a minimum. Inner search: `Cmaes<18, 12>` from the best real θ, σ₀ 0.5
+//! Spearman ρ ≥ a minimum, and a second, affine model may have to agree with the screen.
+//! Inner search: `Cmaes<18, 12>` from the best real θ, σ₀ 0.5
 //! of the trust box, 240 imagined episodes. Every setting of the grid in `main` is printed;
 //! the one reported in the findings was chosen on seeds 101–110 (most seeds within 1 m,
 //! then fewest episodes above 1.2·c₀, then the smallest median).
@@ -28,7 +29,7 @@
 use ctrl_adapt::controller::Controller;
 use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::model::{
-    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Regressors, RlsModel, Source,
+    Affine, AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Regressors, RlsModel, Source,
     imagine_episode,
 };
 use ctrl_adapt::optimizer::{Bounds, Cmaes, CmaesConfig, Optimizer, Vector};
@@ -95,8 +96,8 @@ fn features(x: &Vector<6>, _: &Vector<3>) -> Vector<4> {
 }
 
 /// `imagine_episode`'s survey cost of θ from `start`; 100 if the rollout diverges.
-fn predicted_cost<M: Regressors<6, 3, R>>(
-    model: &RlsModel<6, 3, R>,
+fn predicted_cost<const Q: usize, M: Regressors<6, 3, Q>>(
+    model: &RlsModel<6, 3, Q>,
     map: &M,
     start: &Vector<6>,
     theta: &Vector<P>,
@@ -130,6 +131,9 @@ struct Settings {
     /// The model's candidate is considered only when its Spearman ρ over the real episodes
     /// so far is at least this (−1: always).
     min_rho: f64,
+    /// A second opinion: an affine model (R = 10) fitted on the same ticks must also
+    /// predict the candidate under the threshold and below the best real θ.
+    second_opinion: bool,
 }
 
 /// Ranks with ties averaged, then Pearson's correlation of the ranks (0 if constant).
@@ -184,8 +188,17 @@ fn learn(seed: u64, settings: Settings) -> Run {
                 .unwrap();
         }
     };
+    let mut second = RlsModel::<6, 3, 10>::try_new(ModelConfig::DEFAULT).unwrap();
+    let fit_second = |model: &mut RlsModel<6, 3, 10>, e: &Episode| {
+        for (k, u) in e.commands.iter().enumerate() {
+            model
+                .update(&Affine, &e.states[k], u, &e.states[k + 1])
+                .unwrap();
+        }
+    };
     let bare = run(&Vector::zeros(), &mut auv);
     fit(&mut model, &bare);
+    fit_second(&mut second, &bare);
     let start = bare.states[0];
     let threshold = 1.2 * bare.cost;
     let mut real: Vec<(Vector<P>, f32)> = vec![(Vector::zeros(), bare.cost)];
@@ -205,6 +218,7 @@ fn learn(seed: u64, settings: Settings) -> Run {
         source.push('e');
         let e = run(&theta, &mut auv);
         fit(&mut model, &e);
+        fit_second(&mut second, &e);
         real.push((theta, e.cost));
     }
     let box_ = auv_task::bounds();
@@ -235,10 +249,17 @@ fn learn(seed: u64, settings: Settings) -> Run {
         let measured: Vec<f32> = real.iter().map(|(_, c)| *c).collect();
         let ranks = spearman(&predicted, &measured) >= settings.min_rho;
         let candidate = inner.best().map(|b| (b.theta, b.cost)).filter(|_| ranks);
+        let agrees = |theta: &Vector<P>| {
+            !settings.second_opinion || {
+                let c = predicted_cost(&second, &Affine, &start, theta);
+                c <= threshold && c < predicted_cost(&second, &Affine, &start, &best_theta)
+            }
+        };
         let screened = candidate.filter(|(theta, predicted)| {
             *predicted <= threshold
                 && *predicted < predict(&model, &best_theta)
                 && box_.contains(theta)
+                && agrees(theta)
         });
         let (theta, chose_model) = match screened {
             Some((theta, _)) => (theta, true),
@@ -249,6 +270,7 @@ fn learn(seed: u64, settings: Settings) -> Run {
         };
         let e = run(&theta, &mut auv);
         fit(&mut model, &e);
+        fit_second(&mut second, &e);
         source.push(if chose_model { 'm' } else { 'f' });
         if chose_model {
             from_model += 1;
@@ -433,20 +455,23 @@ fn main() {
     println!("| --- | ---: | ---: | ---: | ---: | ---: | --- |");
     let runs: Vec<Run> = seeds.iter().map(|&s| coordinate(s)).collect();
     summary("coordinate search", &runs);
-    for (radius, explore, explorations, screen_exploration, min_rho) in [
-        (0.3, 0.3, 2, false, -1.0),
-        (0.6, 0.3, 2, false, -1.0),
-        (0.3, 0.15, 2, false, -1.0),
-        (0.3, 0.1, 2, false, -1.0),
-        (0.3, 0.3, 2, true, -1.0),
-        (0.3, 0.15, 2, true, -1.0),
-        (0.3, 0.1, 2, false, 0.5),
-        (0.3, 0.15, 2, true, 0.5),
-        (0.3, 0.1, 4, false, -1.0),
-        (0.3, 0.05, 4, false, -1.0),
-        (0.15, 0.1, 2, false, -1.0),
-        (0.15, 0.05, 4, false, -1.0),
-        (0.15, 0.05, 3, false, -1.0),
+    for (radius, explore, explorations, screen_exploration, min_rho, second_opinion) in [
+        (0.3, 0.3, 2, false, -1.0, false),
+        (0.6, 0.3, 2, false, -1.0, false),
+        (0.3, 0.15, 2, false, -1.0, false),
+        (0.3, 0.1, 2, false, -1.0, false),
+        (0.3, 0.3, 2, true, -1.0, false),
+        (0.3, 0.15, 2, true, -1.0, false),
+        (0.3, 0.1, 2, false, 0.5, false),
+        (0.3, 0.15, 2, true, 0.5, false),
+        (0.3, 0.1, 4, false, -1.0, false),
+        (0.3, 0.05, 4, false, -1.0, false),
+        (0.15, 0.1, 2, false, -1.0, false),
+        (0.15, 0.05, 4, false, -1.0, false),
+        (0.15, 0.05, 3, false, -1.0, false),
+        (0.15, 0.05, 3, false, -1.0, true),
+        (0.3, 0.05, 4, false, -1.0, true),
+        (0.3, 0.1, 2, false, -1.0, true),
     ] {
         let settings = Settings {
             radius,
@@ -454,6 +479,7 @@ fn main() {
             explorations,
             screen_exploration,
             min_rho,
+            second_opinion,
         };
         let runs: Vec<Run> = seeds.iter().map(|&s| learn(s, settings)).collect();
         let screened = if screen_exploration { ", screened" } else { "" };
@@ -462,9 +488,14 @@ fn main() {
         } else {
             String::new()
         };
+        let opinion = if second_opinion {
+            ", second opinion"
+        } else {
+            ""
+        };
         summary(
             &format!(
-                "model-based, r₀ = {radius}, {explorations} explorations ±{explore}{screened}{rho}"
+                "model-based, r₀ = {radius}, {explorations} explorations ±{explore}{screened}{rho}{opinion}"
             ),
             &runs,
         );
@@ -475,6 +506,7 @@ fn main() {
         explorations: 3,
         screen_exploration: false,
         min_rho: -1.0,
+        second_opinion: false,
     };
     let runs: Vec<Run> = seeds
         .iter()
