@@ -35,6 +35,7 @@ pub mod checkpoint;
 pub mod controller;
 pub mod cost;
 pub mod error;
+pub mod model;
 pub mod optimizer;
 pub mod random;
 #[cfg(feature = "serde")]
@@ -90,6 +91,13 @@ const _: () = {
     assert_format::<controller::PeriodicPd<10, 31>>();
     assert_format::<controller::AdapterBuilder<1, 2, 2>>();
     assert_format::<controller::Corrected<controller::Pd<1>, 1, 2, 2>>();
+    assert_format::<model::RlsModel<6, 3, 14>>();
+    assert_format::<model::ModelConfig>();
+    assert_format::<model::Affine>();
+    assert_format::<model::ModelBasedConfig>();
+    assert_format::<model::Source>();
+    assert_format::<model::Proposal<3>>();
+    assert_format::<model::ModelBased<CoordinateSearch<3>, 3>>();
     assert_format::<cost::SurveyCost>();
     assert_format::<cost::QuadraticCost<3>>();
     assert_format::<cost::ApexHeightCost>();

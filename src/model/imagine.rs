@@ -1,0 +1,238 @@
+//! Imagined episodes: the controller, its correction θ and the cost shaper run against a
+//! learned model instead of the plant (the inner loop of PILCO and Black-DROPS, which
+//! evaluate a policy on the model's predicted trajectory).
+//!
+//! [`imagine_episode`] mirrors one episode of the [`Adapter`](crate::controller::Adapter):
+//! the same [`Controller`] (its `corrected` law, with the time of each tick), the same
+//! [`Shaper`] (observing each tick's observation after the command is computed) and the same
+//! control period, with the model's prediction standing in for the plant's next state. So the
+//! adapter's own controller and shaper score a candidate on the model exactly as they would
+//! on the robot. [`rollout`] is the bare loop, for a policy or cost of another form.
+//!
+//! The predicted cost is only as good as the model over the states the candidate visits: a
+//! θ that drives the state where no tick was recorded is scored by extrapolation. Use it to
+//! rank candidates near the ones the robot has run, and check the ranking against real
+//! episodes (the AUV study in `experiments/findings/model.md`).
+
+use super::{Regressors, RlsModel};
+use crate::controller::Controller;
+use crate::cost::Shaper;
+use crate::error::Error;
+use crate::vector::Vector;
+
+/// Rolls the model forward `ticks` ticks from `start`: each tick `step(k, &state)` returns
+/// the command, and the model predicts the next state. Returns the final state.
+///
+/// Errors: a non-finite `start` ([`Error::NonFinite`]`("start")`) or a prediction that
+/// leaves the finite numbers ([`Error::NonFinite`]`("prediction")`): the rollout stops there.
+///
+/// ```
+/// use ctrl_adapt::model::{Affine, ModelConfig, RlsModel, rollout};
+/// use ctrl_adapt::Vector;
+/// let mut model = RlsModel::<1, 1, 3>::try_new(ModelConfig::DEFAULT)?;
+/// let mut x = Vector::<1>::new(0.0);
+/// for k in 0..100 {
+///     // An integrator: x' = x + 0.1 u.
+///     let u = Vector::<1>::new(if k % 7 < 3 { 1.0 } else { -0.5 });
+///     let next = x + u * 0.1;
+///     model.update(&Affine, &x, &u, &next)?;
+///     x = next;
+/// }
+/// // Ten ticks of u = 1 from 0 reach about 1.
+/// let end = rollout(&model, &Affine, &Vector::<1>::new(0.0), 10, |_, _| Vector::<1>::new(1.0))?;
+/// assert!((end[0] - 1.0).abs() < 1e-2);
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+pub fn rollout<const S: usize, const A: usize, const R: usize, M: Regressors<S, A, R>>(
+    model: &RlsModel<S, A, R>,
+    map: &M,
+    start: &Vector<S>,
+    ticks: u32,
+    mut step: impl FnMut(u32, &Vector<S>) -> Vector<A>,
+) -> Result<Vector<S>, Error> {
+    if start.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite("start"));
+    }
+    let mut state = *start;
+    for k in 0..ticks {
+        let command = step(k, &state);
+        state = model.predict(map, &state, &command);
+        if state.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite("prediction"));
+        }
+    }
+    Ok(state)
+}
+
+/// The predicted cost of one episode of `controller` corrected by `theta`, scored by
+/// `shaper`, on the model: from `start`, `ticks` control periods of `dt` seconds. Each tick,
+/// as in the adapter: the command is `controller.corrected(theta, state, k·dt)` (a
+/// non-finite command falls back to `controller.nominal`, then to its safe action), the
+/// shaper observes `observation(&state)` over `dt`, and the model predicts the next state.
+/// The controller and the shaper are reset first; the model is not changed.
+///
+/// Errors as [`rollout`]'s; a non-finite cost (the shaper saw nothing valid) is
+/// [`Error::NonFinite`]`("cost")`.
+///
+/// ```
+/// use ctrl_adapt::controller::{Controller, CorrectedPd, IdentityFeatures, LinearPolicy, Pd};
+/// use ctrl_adapt::cost::{QuadraticCost, Shaper};
+/// use ctrl_adapt::model::{Affine, ModelConfig, RlsModel, imagine_episode};
+/// use ctrl_adapt::Vector;
+/// // A 1-D position error e with velocity v; the command is an acceleration (dt = 0.1):
+/// // state [e, v], e' = e − 0.1 v, v' = v + 0.1 u.
+/// let plant = |x: &Vector<2>, u: &Vector<1>| Vector::<2>::new(x[0] - 0.1 * x[1], x[1] + 0.1 * u[0]);
+/// let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT)?;
+/// let mut x = Vector::<2>::new(1.0, 0.0);
+/// for k in 0..300 {
+///     let u = Vector::<1>::new(((k * 37) % 11) as f32 / 5.0 - 1.0 + x[0] - 1.5 * x[1]);
+///     let next = plant(&x, &u);
+///     model.update(&Affine, &x, &u, &next)?;
+///     x = next;
+/// }
+/// let pd = Pd::try_new(Vector::<1>::new(1.0), Vector::<1>::new(1.5))?;
+/// let policy = LinearPolicy::try_new(IdentityFeatures, Vector::<1>::new(1.0))?;
+/// let mut controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+/// let mut cost = QuadraticCost::try_new(Vector::<1>::new(1.0))?;
+/// let start = Vector::<2>::new(1.0, 0.0);
+/// let theta = Vector::<2>::new(0.5, 0.0);
+/// let imagined = imagine_episode(&model, &Affine, &start, 100, 0.1, &mut controller, &theta,
+///     &mut cost, |x| Vector::<1>::new(x[0]))?;
+/// // The same episode on the plant itself.
+/// cost.reset();
+/// let mut x = start;
+/// for k in 0..100 {
+///     let u = controller.corrected(&theta, &x, k as f32 * 0.1);
+///     cost.observe(&Vector::<1>::new(x[0]), 0.1);
+///     x = plant(&x, &u);
+/// }
+/// assert!((imagined - cost.cost()).abs() < 1e-2 * cost.cost());
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+#[allow(clippy::too_many_arguments)]
+pub fn imagine_episode<
+    const P: usize,
+    const S: usize,
+    const A: usize,
+    const R: usize,
+    M: Regressors<S, A, R>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+>(
+    model: &RlsModel<S, A, R>,
+    map: &M,
+    start: &Vector<S>,
+    ticks: u32,
+    dt: f32,
+    controller: &mut C,
+    theta: &Vector<P>,
+    shaper: &mut Sh,
+    observation: impl Fn(&Vector<S>) -> Sh::Observation,
+) -> Result<f32, Error> {
+    controller.reset();
+    shaper.reset();
+    rollout(model, map, start, ticks, |k, state| {
+        let time = k as f32 * dt;
+        let mut command = controller.corrected(theta, state, time);
+        if command.iter().any(|v| !v.is_finite()) {
+            command = controller.nominal(state, time);
+            if command.iter().any(|v| !v.is_finite()) {
+                command = controller.safe_action();
+            }
+        }
+        shaper.observe(&observation(state), dt);
+        command
+    })?;
+    let cost = shaper.cost();
+    if cost.is_finite() {
+        Ok(cost)
+    } else {
+        Err(Error::NonFinite("cost"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::controller::{CorrectedPd, IdentityFeatures, LinearPolicy, Pd};
+    use crate::cost::QuadraticCost;
+    use crate::model::{Affine, ModelConfig};
+
+    #[test]
+    fn a_diverging_model_is_an_error_not_a_cost() {
+        let mut model = RlsModel::<1, 1, 3>::try_new(ModelConfig::DEFAULT).unwrap();
+        // x' = 3 x: the rollout grows past f32::MAX.
+        let mut x = Vector::<1>::new(1.0);
+        for k in 0..50 {
+            let u = Vector::<1>::new((k % 3) as f32);
+            let next = x * 3.0 + u * 0.01;
+            model.update(&Affine, &x, &u, &next).unwrap();
+            x = Vector::<1>::new(((k % 5) as f32) - 2.0);
+        }
+        let end = rollout(&model, &Affine, &Vector::<1>::new(1.0), 200, |_, _| {
+            Vector::<1>::zeros()
+        });
+        assert_eq!(end, Err(Error::NonFinite("prediction")));
+        let start = Vector::<1>::new(f32::NAN);
+        assert_eq!(
+            rollout(&model, &Affine, &start, 1, |_, _| Vector::<1>::zeros()),
+            Err(Error::NonFinite("start"))
+        );
+    }
+
+    #[test]
+    fn the_imagined_cost_ranks_like_the_plant() {
+        // A double integrator with a PD; θ scales the correction on [e, v].
+        let plant =
+            |x: &Vector<2>, u: &Vector<1>| Vector::<2>::new(x[0] - 0.1 * x[1], x[1] + 0.1 * u[0]);
+        let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let mut x = Vector::<2>::new(1.0, 0.0);
+        for k in 0..400u32 {
+            let u = Vector::<1>::new((k.wrapping_mul(7919) % 13) as f32 / 6.0 - 1.0);
+            let next = plant(&x, &u);
+            model.update(&Affine, &x, &u, &next).unwrap();
+            x = if k % 50 == 49 {
+                Vector::<2>::new(1.0, 0.0)
+            } else {
+                next
+            };
+        }
+        let pd = Pd::try_new(Vector::<1>::new(1.0), Vector::<1>::new(1.0)).unwrap();
+        let policy = LinearPolicy::try_new(IdentityFeatures, Vector::<1>::new(2.0)).unwrap();
+        let mut controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+        let mut shaper = QuadraticCost::try_new(Vector::<1>::new(1.0)).unwrap();
+        let start = Vector::<2>::new(1.0, 0.0);
+        let thetas = [[-0.5, 0.0], [0.0, 0.0], [0.5, 0.5], [1.0, 1.0], [0.5, -0.5]];
+        let mut imagined = [0.0f32; 5];
+        let mut real = [0.0f32; 5];
+        for (i, t) in thetas.iter().enumerate() {
+            let theta = Vector::<2>::new(t[0], t[1]);
+            imagined[i] = imagine_episode(
+                &model,
+                &Affine,
+                &start,
+                80,
+                0.1,
+                &mut controller,
+                &theta,
+                &mut shaper,
+                |x| Vector::<1>::new(x[0]),
+            )
+            .unwrap();
+            shaper.reset();
+            let mut x = start;
+            for k in 0..80 {
+                let u = controller.corrected(&theta, &x, k as f32 * 0.1);
+                shaper.observe(&Vector::<1>::new(x[0]), 0.1);
+                x = plant(&x, &u);
+            }
+            real[i] = shaper.cost();
+        }
+        for i in 0..5 {
+            assert!(
+                (imagined[i] - real[i]).abs() <= 1e-2 * real[i],
+                "{imagined:?} {real:?}"
+            );
+        }
+    }
+}

@@ -1,0 +1,576 @@
+//! A model-based learner: between real episodes, any of the library's optimizers searches
+//! the model's predicted cost inside a trust region around the best real θ, and its best is
+//! screened before the robot runs it (Black-DROPS, Chatzilygeroudis et al., IROS 2017, runs
+//! CMA-ES on the learned model; the trust region and the screen are this library's
+//! guards against a model that is exploited where it is wrong).
+//!
+//! One real episode at a time:
+//!
+//! 1. [`ModelBased::propose`] builds a fresh inner optimizer on the trust box (the
+//!    half-width `radius` box around the best real θ, inside the outer bounds) and runs it
+//!    for `inner_evaluations` predictions (`predict(θ)`, typically an
+//!    [`imagine_episode`](super::imagine_episode) on the freshly refitted model);
+//! 2. the inner best is proposed ([`Source::Model`]) if its predicted cost is at most the
+//!    threshold (the reference cost, e.g. the bare controller's measured cost, plus
+//!    `margin`) and below the prediction for the best real θ; otherwise the fallback
+//!    optimizer's own model-free candidate is ([`Source::Fallback`]);
+//! 3. [`ModelBased::tell`] reports the real cost: the best real θ is updated, the fallback
+//!    is told only its own candidates, and the trust region grows after an improvement and
+//!    shrinks otherwise.
+//!
+//! Episodes the caller runs itself (the bare controller, small exploration episodes that
+//! make the model identifiable) are reported with [`ModelBased::record`].
+//!
+//! On the AUV (`experiments/findings/model.md`, a research loop of the same design) this
+//! reached 1 m on 10 seeds of 10 with a median of 6 real episodes, but 6 of 150 episodes
+//! exceeded 1.2 × the bare cost: the screen trusts the same model the inner search
+//! exploited. It is not a safety guarantee.
+//!
+//! # Footprint
+//! For the AUV (N = 18, coordinate-search fallback) the learner is 1,016 bytes and its model
+//! (`RlsModel<6, 3, 14>`) 1,168 bytes: 2,184 bytes kept between episodes. The inner
+//! optimizer lives only inside `propose`, on the stack: 4,520 bytes for `Cmaes<18, 12>`.
+//! A proposal costs `inner_evaluations` imagined episodes (240 × 240 ticks on the AUV); its
+//! time on a Cortex-M4F has not been measured.
+
+use rand_core::RngCore;
+
+use crate::bounds::Bounds;
+use crate::error::{Error, require};
+use crate::optimizer::{Best, Optimizer};
+use crate::vector::Vector;
+
+/// The constants of a [`ModelBased`] learner.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct ModelBasedConfig {
+    /// Initial half-width of the trust region, in θ units (> 0).
+    pub initial_radius: f32,
+    /// Smallest half-width (> 0, ≤ `initial_radius`).
+    pub min_radius: f32,
+    /// Largest half-width (≥ `initial_radius`).
+    pub max_radius: f32,
+    /// Factor on the half-width after a real episode that improves the best (≥ 1).
+    pub grow: f32,
+    /// Factor on the half-width after one that does not (in (0, 1]).
+    pub shrink: f32,
+    /// Margin added to the reference cost to make the screening threshold (≥ 0, finite).
+    pub margin: f32,
+    /// Predictions the inner optimizer may make per proposal (≥ 1).
+    pub inner_evaluations: u32,
+}
+
+impl ModelBasedConfig {
+    /// The AUV prototype's settings: radius 0.15 in [0.05, 1], ×1.5 / ×0.6, margin 0 (set
+    /// it for the task), 240 predictions per proposal.
+    pub const DEFAULT: Self = Self {
+        initial_radius: 0.15,
+        min_radius: 0.05,
+        max_radius: 1.0,
+        grow: 1.5,
+        shrink: 0.6,
+        margin: 0.0,
+        inner_evaluations: 240,
+    };
+
+    /// Checks every field (named in the error).
+    pub fn validate(&self) -> Result<(), Error> {
+        require(
+            self.min_radius > 0.0 && self.min_radius.is_finite(),
+            "min_radius",
+        )?;
+        require(
+            self.initial_radius >= self.min_radius && self.initial_radius.is_finite(),
+            "initial_radius",
+        )?;
+        require(
+            self.max_radius >= self.initial_radius && self.max_radius.is_finite(),
+            "max_radius",
+        )?;
+        require(self.grow >= 1.0 && self.grow.is_finite(), "grow")?;
+        require(self.shrink > 0.0 && self.shrink <= 1.0, "shrink")?;
+        require(self.margin >= 0.0 && self.margin.is_finite(), "margin")?;
+        require(self.inner_evaluations >= 1, "inner_evaluations")
+    }
+}
+
+impl Default for ModelBasedConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Where a proposed θ comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Source {
+    /// The inner search on the model; its predicted cost.
+    Model(f32),
+    /// The fallback optimizer's model-free step (the model's best did not pass the screen,
+    /// or every prediction failed).
+    Fallback,
+}
+
+/// A θ for the next real episode, and where it comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Proposal<const N: usize> {
+    /// The parameters to run.
+    pub theta: Vector<N>,
+    /// Model or fallback.
+    pub source: Source,
+}
+
+/// The model-based learner of the [module docs](self): `F` is the model-free fallback
+/// optimizer, told only the candidates it proposed; the inner optimizer is built afresh for
+/// each proposal by a closure, so any of the library's optimizers can serve.
+///
+/// ```
+/// use ctrl_adapt::model::{ModelBased, ModelBasedConfig, Source};
+/// use ctrl_adapt::optimizer::{Bounds, Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch};
+/// use ctrl_adapt::Vector;
+/// use rand_core::SeedableRng;
+/// let bounds = Bounds::<2>::uniform(-1.0, 1.0)?;
+/// // The real cost, and a model of it that is right up to an offset.
+/// let real = |t: &Vector<2>| (t[0] - 0.5).powi(2) + (t[1] + 0.2).powi(2);
+/// let predict = |t: &Vector<2>| Ok(real(t) + 0.01);
+/// let fallback = CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT)?;
+/// let config = ModelBasedConfig { margin: 0.1, initial_radius: 0.3, ..ModelBasedConfig::DEFAULT };
+/// let mut learner = ModelBased::try_new(bounds, fallback, config)?;
+/// learner.record(Vector::zeros(), real(&Vector::zeros()))?; // the bare controller
+/// learner.set_reference(real(&Vector::zeros()))?;
+/// let inner = |b: Bounds<2>, start: Vector<2>| {
+///     Cmaes::<2, 6>::try_new(b, start, CmaesConfig { max_evaluations: 120, ..CmaesConfig::DEFAULT })
+/// };
+/// let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
+/// let mut from_model = 0;
+/// for _ in 0..6 {
+///     let proposal = learner.propose(&mut rng, inner, predict)?;
+///     // Near the optimum the model cannot promise better than the best real θ: the
+///     // fallback takes those episodes.
+///     from_model += matches!(proposal.source, Source::Model(_)) as u32;
+///     learner.tell(real(&proposal.theta))?;
+/// }
+/// assert!(from_model >= 3);
+/// assert!(learner.best().unwrap().cost < 1e-2);
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct ModelBased<F, const N: usize> {
+    config: ModelBasedConfig,
+    bounds: Bounds<N>,
+    fallback: F,
+    best: Option<Best<N>>,
+    radius: f32,
+    reference: Option<f32>,
+    pending: Option<Proposal<N>>,
+    evaluations: u32,
+}
+
+impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
+    /// A learner over `bounds` with the model-free `fallback`, if `config` validates.
+    pub fn try_new(
+        bounds: Bounds<N>,
+        fallback: F,
+        config: ModelBasedConfig,
+    ) -> Result<Self, Error> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            bounds,
+            fallback,
+            best: None,
+            radius: config.initial_radius,
+            reference: None,
+            pending: None,
+            evaluations: 0,
+        })
+    }
+
+    /// Sets the reference cost of the screen (the bare controller's measured cost): a model
+    /// candidate must be predicted at most `reference + margin`. Without a reference only
+    /// the comparison with the best real θ's prediction screens.
+    pub fn set_reference(&mut self, cost: f32) -> Result<(), Error> {
+        require(cost.is_finite(), "reference").map_err(|_| Error::NonFinite("reference"))?;
+        self.reference = Some(cost);
+        Ok(())
+    }
+
+    /// Reports a real episode the caller chose itself (the bare controller, an exploration
+    /// episode): it counts for the best real θ, not for the fallback or the trust region.
+    pub fn record(&mut self, theta: Vector<N>, cost: f32) -> Result<(), Error> {
+        if self.pending.is_some() {
+            return Err(Error::CandidatePending);
+        }
+        self.bounds.check(&theta, "theta")?;
+        require(cost.is_finite(), "cost").map_err(|_| Error::NonFinite("cost"))?;
+        self.improve(theta, cost);
+        self.evaluations = self.evaluations.saturating_add(1);
+        Ok(())
+    }
+
+    fn improve(&mut self, theta: Vector<N>, cost: f32) -> bool {
+        let better = self.best.is_none_or(|b| cost < b.cost);
+        if better {
+            self.best = Some(Best { theta, cost });
+        }
+        better
+    }
+
+    /// The θ of the next real episode (see the [module docs](self)). `inner(trust, start)`
+    /// builds the inner optimizer on the trust box, started at the best real θ (the outer
+    /// bounds' centre before any episode); `predict(θ)` is the model's cost of θ, an error
+    /// when the model cannot say (a diverging rollout): such θ are told a cost worse than
+    /// any prediction seen. Repeats the pending proposal until it is told.
+    ///
+    /// Errors: the fallback's ([`Error::Stopped`] when it is spent and the model's
+    /// candidate did not pass), or the inner optimizer's construction.
+    pub fn propose<R, O>(
+        &mut self,
+        rng: &mut R,
+        mut inner: impl FnMut(Bounds<N>, Vector<N>) -> Result<O, Error>,
+        mut predict: impl FnMut(&Vector<N>) -> Result<f32, Error>,
+    ) -> Result<Proposal<N>, Error>
+    where
+        R: RngCore + ?Sized,
+        O: Optimizer<N>,
+    {
+        if let Some(p) = self.pending {
+            return Ok(p);
+        }
+        let centre = match self.best {
+            Some(b) => b.theta,
+            None => (self.bounds.lower() + self.bounds.upper()) * 0.5,
+        };
+        let r = self.radius;
+        let (lower, upper) = (self.bounds.lower(), self.bounds.upper());
+        let trust = Bounds::try_new(
+            Vector::<N>::from_fn(|i, _| max(centre[i] - r, lower[i])),
+            Vector::<N>::from_fn(|i, _| min(centre[i] + r, upper[i])),
+        )?;
+        let mut search = inner(trust, centre)?;
+        let mut worst = f32::MIN;
+        let mut best_model: Option<(Vector<N>, f32)> = None;
+        for _ in 0..self.config.inner_evaluations {
+            let Ok(theta) = search.ask(rng) else { break };
+            let cost = match predict(&theta) {
+                Ok(c) if c.is_finite() => {
+                    worst = max(worst, c);
+                    if best_model.is_none_or(|(_, b)| c < b) {
+                        best_model = Some((theta, c));
+                    }
+                    c
+                }
+                // Worse than anything predicted so far, and finite.
+                _ => {
+                    if worst > f32::MIN {
+                        worst + libm::fabsf(worst) + 1.0
+                    } else {
+                        f32::MAX / 2.0
+                    }
+                }
+            };
+            if search.tell(cost).is_err() {
+                break;
+            }
+        }
+        let incumbent = self
+            .best
+            .map(|b| predict(&b.theta).ok().filter(|c| c.is_finite()));
+        let threshold = self.reference.map(|c| c + self.config.margin);
+        let passes = |predicted: f32| {
+            threshold.is_none_or(|t| predicted <= t)
+                && match incumbent {
+                    // No real episode yet: nothing to beat.
+                    None => true,
+                    Some(Some(i)) => predicted < i,
+                    // The model cannot predict the best real θ: it cannot rank against it.
+                    Some(None) => false,
+                }
+        };
+        let proposal = match best_model {
+            Some((theta, predicted)) if passes(predicted) && self.bounds.contains(&theta) => {
+                Proposal {
+                    theta,
+                    source: Source::Model(predicted),
+                }
+            }
+            _ => Proposal {
+                theta: self.fallback.ask(rng)?,
+                source: Source::Fallback,
+            },
+        };
+        self.pending = Some(proposal);
+        Ok(proposal)
+    }
+
+    /// Reports the real cost of the pending proposal. A missing proposal
+    /// ([`Error::NoPendingAsk`]) or a non-finite cost ([`Error::NonFinite`]) changes nothing.
+    pub fn tell(&mut self, cost: f32) -> Result<(), Error> {
+        let proposal = self.pending.ok_or(Error::NoPendingAsk)?;
+        require(cost.is_finite(), "cost").map_err(|_| Error::NonFinite("cost"))?;
+        if proposal.source == Source::Fallback {
+            self.fallback.tell(cost)?;
+        }
+        self.pending = None;
+        self.evaluations = self.evaluations.saturating_add(1);
+        self.radius = if self.improve(proposal.theta, cost) {
+            min(self.radius * self.config.grow, self.config.max_radius)
+        } else {
+            max(self.radius * self.config.shrink, self.config.min_radius)
+        };
+        Ok(())
+    }
+
+    /// The best real (θ, cost) so far.
+    pub fn best(&self) -> Option<Best<N>> {
+        self.best
+    }
+
+    /// The proposal handed out and not yet told.
+    pub fn pending(&self) -> Option<&Proposal<N>> {
+        self.pending.as_ref()
+    }
+
+    /// The trust region's current half-width.
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    /// Real episodes reported (told and recorded).
+    pub fn evaluations(&self) -> u32 {
+        self.evaluations
+    }
+
+    /// The fallback optimizer.
+    pub fn fallback(&self) -> &F {
+        &self.fallback
+    }
+
+    /// The constants.
+    pub fn config(&self) -> &ModelBasedConfig {
+        &self.config
+    }
+}
+
+fn max(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+fn min(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::optimizer::{Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch};
+    use crate::testing::rng;
+    use proptest::prelude::*;
+
+    type Learner = ModelBased<CoordinateSearch<2>, 2>;
+
+    fn learner(config: ModelBasedConfig) -> Learner {
+        let bounds = Bounds::uniform(-1.0, 1.0).unwrap();
+        let fallback =
+            CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT).unwrap();
+        ModelBased::try_new(bounds, fallback, config).unwrap()
+    }
+
+    fn inner(b: Bounds<2>, start: Vector<2>) -> Result<Cmaes<2, 6>, Error> {
+        let config = CmaesConfig {
+            max_evaluations: 60,
+            ..CmaesConfig::DEFAULT
+        };
+        Cmaes::try_new(b, start, config)
+    }
+
+    fn real(t: &Vector<2>) -> f32 {
+        (t[0] - 0.5).powi(2) + (t[1] + 0.2).powi(2)
+    }
+
+    #[test]
+    fn model_candidates_stay_in_the_trust_region() {
+        let mut l = learner(ModelBasedConfig {
+            initial_radius: 0.1,
+            ..ModelBasedConfig::DEFAULT
+        });
+        l.record(Vector::zeros(), real(&Vector::zeros())).unwrap();
+        let p = l.propose(&mut rng(1), inner, |t| Ok(real(t))).unwrap();
+        assert!(matches!(p.source, Source::Model(_)));
+        assert!(p.theta.amax() <= 0.1 + 1e-6);
+        // Repeated until told.
+        assert_eq!(l.propose(&mut rng(2), inner, |t| Ok(real(t))).unwrap(), p);
+        assert_eq!(l.record(Vector::zeros(), 1.0), Err(Error::CandidatePending));
+        l.tell(real(&p.theta)).unwrap();
+        assert!((l.radius() - 0.15).abs() < 1e-6);
+    }
+
+    #[test]
+    fn falls_back_when_the_screen_rejects_or_the_model_fails() {
+        let config = ModelBasedConfig {
+            margin: 0.0,
+            ..ModelBasedConfig::DEFAULT
+        };
+        // A model that predicts everything worse than the reference.
+        let mut l = learner(config);
+        l.record(Vector::zeros(), 0.29).unwrap();
+        l.set_reference(0.29).unwrap();
+        let p = l
+            .propose(&mut rng(1), inner, |t| Ok(real(t) + 1.0))
+            .unwrap();
+        assert_eq!(p.source, Source::Fallback);
+        let before = *l.fallback();
+        l.tell(0.5).unwrap();
+        assert_ne!(
+            *l.fallback(),
+            before,
+            "the fallback is told its own candidate"
+        );
+        // A model that cannot predict.
+        let p = l
+            .propose(&mut rng(2), inner, |_| Err(Error::NonFinite("prediction")))
+            .unwrap();
+        assert_eq!(p.source, Source::Fallback);
+    }
+
+    #[test]
+    fn refuses_bad_tells_and_records_without_change() {
+        let mut l = learner(ModelBasedConfig::DEFAULT);
+        assert_eq!(l.tell(1.0), Err(Error::NoPendingAsk));
+        assert_eq!(
+            l.record(Vector::zeros(), f32::NAN),
+            Err(Error::NonFinite("cost"))
+        );
+        assert_eq!(
+            l.record(Vector::repeat(2.0), 1.0),
+            Err(Error::OutOfBounds("theta"))
+        );
+        assert_eq!(
+            l.set_reference(f32::INFINITY),
+            Err(Error::NonFinite("reference"))
+        );
+        l.propose(&mut rng(1), inner, |t| Ok(real(t))).unwrap();
+        let before = l;
+        assert_eq!(l.tell(f32::NAN), Err(Error::NonFinite("cost")));
+        assert_eq!(l, before);
+    }
+
+    #[test]
+    fn config_is_checked() {
+        for (config, field) in [
+            (
+                ModelBasedConfig {
+                    min_radius: 0.0,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "min_radius",
+            ),
+            (
+                ModelBasedConfig {
+                    initial_radius: 0.01,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "initial_radius",
+            ),
+            (
+                ModelBasedConfig {
+                    max_radius: 0.1,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "max_radius",
+            ),
+            (
+                ModelBasedConfig {
+                    grow: 0.5,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "grow",
+            ),
+            (
+                ModelBasedConfig {
+                    shrink: 0.0,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "shrink",
+            ),
+            (
+                ModelBasedConfig {
+                    margin: f32::NAN,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "margin",
+            ),
+            (
+                ModelBasedConfig {
+                    inner_evaluations: 0,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "inner_evaluations",
+            ),
+        ] {
+            assert_eq!(config.validate(), Err(Error::InvalidParameter(field)));
+        }
+    }
+
+    proptest! {
+        /// Any predictions and any real costs: no panic, proposals inside the bounds, the
+        /// radius inside its range, the best real cost never worse.
+        #[test]
+        fn never_panics(
+            predictions in proptest::collection::vec(any::<f32>(), 1..40),
+            costs in proptest::collection::vec(any::<f32>(), 1..12),
+            seed in any::<u64>(),
+        ) {
+            let mut l = learner(ModelBasedConfig { inner_evaluations: 30, ..ModelBasedConfig::DEFAULT });
+            let _ = l.set_reference(costs[0]);
+            let mut r = rng(seed);
+            let mut best = f32::INFINITY;
+            for (k, cost) in costs.iter().enumerate() {
+                let mut i = k;
+                let p = l.propose(&mut r, inner, |_| {
+                    i += 1;
+                    Ok(predictions[i % predictions.len()])
+                });
+                let Ok(p) = p else { break };
+                prop_assert!(l.bounds.contains(&p.theta));
+                let _ = l.tell(*cost);
+                let c = config_range(&l);
+                prop_assert!(c);
+                if let Some(b) = l.best() {
+                    prop_assert!(b.cost <= best);
+                    best = b.cost;
+                }
+            }
+        }
+    }
+
+    fn config_range(l: &Learner) -> bool {
+        l.radius() >= l.config().min_radius && l.radius() <= l.config().max_radius
+    }
+}
+
+#[cfg(test)]
+mod footprint {
+    use super::*;
+    use crate::optimizer::{Cmaes, CoordinateSearch};
+
+    /// The AUV's learner state beside its model: the learner with its coordinate-search
+    /// fallback is kept between episodes; the inner CMA-ES lives only during `propose`.
+    #[test]
+    fn sizes_for_the_auv() {
+        extern crate std;
+        let learner = core::mem::size_of::<ModelBased<CoordinateSearch<18>, 18>>();
+        let inner = core::mem::size_of::<Cmaes<18, 12>>();
+        let model = core::mem::size_of::<crate::model::RlsModel<6, 3, 14>>();
+        std::println!(
+            "ModelBased<CoordinateSearch<18>, 18>: {learner} B; Cmaes<18, 12>: {inner} B; RlsModel<6, 3, 14>: {model} B"
+        );
+        assert!(model + learner <= 4096);
+    }
+}

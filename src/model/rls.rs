@@ -1,0 +1,629 @@
+//! Regularised recursive least squares with exponential forgetting (Ljung, "System
+//! Identification", 2nd ed., section 11.2), fitting the state increment x' − x = Wᵀ·z(x, u).
+//!
+//! With the regressors z ∈ R^R of a tick, its increment y = x' − x ∈ R^S and forgetting λ:
+//!
+//! ```text
+//! e = y − Wᵀ z                 (a-priori error: the one-step error the model would have made)
+//! k = P z / (λ + zᵀ P z)
+//! W ← W + k eᵀ
+//! P ← (P − k zᵀ P) / λ
+//! ```
+//!
+//! W starts at zero and P at `prior_variance`·I: a ridge prior pulling the weights to zero
+//! with weight 1/`prior_variance` (the regularisation, which also makes the first ticks
+//! well-posed before R independent regressors have been seen). The S outputs share P, so a
+//! tick costs one R×R update whatever S is.
+//!
+//! # Robustness in f32
+//! Forgetting inflates P along directions the ticks do not excite ("covariance wind-up",
+//! e.g. a command held constant for a whole episode); in f32 the update can also lose the
+//! symmetry and positive definiteness of P. After every tick P is symmetrised, and any
+//! diagonal entry above `max_variance` is brought down to it by scaling its row and column
+//! (a congruence with a positive diagonal matrix: P stays positive semi-definite). A P that
+//! nevertheless degenerates (a non-positive or non-finite entry on its diagonal) is reset to
+//! the prior, keeping W, and counted. A tick that is not finite, or whose fit would overflow
+//! f32 (regressors near f32::MAX), is refused with an error before anything changes, so a
+//! sensor glitch costs one tick and nothing else.
+
+use nalgebra::SMatrix;
+
+use super::Regressors;
+use crate::error::{Error, require};
+use crate::vector::Vector;
+
+/// The constants of an [`RlsModel`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct ModelConfig {
+    /// Forgetting factor λ ∈ [0.5, 1]: a tick k ticks old weighs λ^k. 1 keeps everything
+    /// (a time-invariant plant); 0.999 at 10 Hz forgets with a time constant of 100 s.
+    pub forgetting: f32,
+    /// Initial covariance P = `prior_variance`·I (> 0): the ridge prior's variance of each
+    /// weight. Larger trusts the first ticks more.
+    pub prior_variance: f32,
+    /// Upper bound on every diagonal entry of P (≥ `prior_variance`): limits wind-up.
+    pub max_variance: f32,
+    /// Ticks in the running one-step error's average (≥ 1): the plain mean up to that many
+    /// ticks, then an exponential average over about that many.
+    pub error_window: u32,
+}
+
+impl ModelConfig {
+    /// λ = 0.9995, prior variance 100, bound 1e4, error window 1000 ticks.
+    pub const DEFAULT: Self = Self {
+        forgetting: 0.9995,
+        prior_variance: 100.0,
+        max_variance: 1e4,
+        error_window: 1000,
+    };
+
+    /// Checks every field (named in the error).
+    pub fn validate(&self) -> Result<(), Error> {
+        require(
+            self.forgetting >= 0.5 && self.forgetting <= 1.0,
+            "forgetting",
+        )?;
+        require(
+            self.prior_variance > 0.0 && self.prior_variance.is_finite(),
+            "prior_variance",
+        )?;
+        require(
+            self.max_variance >= self.prior_variance && self.max_variance.is_finite(),
+            "max_variance",
+        )?;
+        require(self.error_window >= 1, "error_window")
+    }
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// A plant model x' = x + Wᵀ·z(x, u) fitted by recursive least squares (see the
+/// [module docs](self)): S state dimensions, A command dimensions, R regressors.
+///
+/// The regressor map (a [`Regressors`]) is passed to each call rather than stored, so the
+/// model holds numbers only, serialises with the `serde` feature and can take a closure's
+/// features. Its size is fixed: (R·S + R² + S + 6)·4 bytes, e.g. 1,168 bytes for S = 6,
+/// A = 3 and R = 14 (the command's size A plays no part).
+///
+/// ```
+/// use ctrl_adapt::model::{Affine, ModelConfig, RlsModel};
+/// use ctrl_adapt::Vector;
+/// // x' = 0.9 x + 0.5 u, identified from ticks of a sine command.
+/// let mut model = RlsModel::<1, 1, 3>::try_new(ModelConfig::DEFAULT)?;
+/// let mut x = Vector::<1>::new(0.0);
+/// for k in 0..200 {
+///     let u = Vector::<1>::new((k as f32 * 0.3).sin());
+///     let next = Vector::<1>::new(0.9 * x[0] + 0.5 * u[0]);
+///     model.update(&Affine, &x, &u, &next)?;
+///     x = next;
+/// }
+/// let predicted = model.predict(&Affine, &Vector::<1>::new(1.0), &Vector::<1>::new(2.0));
+/// assert!((predicted[0] - 1.9).abs() < 1e-3);
+/// assert!(model.one_step_error()[0] < 0.05);
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct RlsModel<const S: usize, const A: usize, const R: usize> {
+    config: ModelConfig,
+    /// W (R × S): column j maps the regressors to the increment of state dimension j.
+    weights: SMatrix<f32, R, S>,
+    /// P (R × R), symmetric positive semi-definite.
+    covariance: SMatrix<f32, R, R>,
+    /// Running mean of the squared a-priori error, per state dimension.
+    mean_square_error: Vector<S>,
+    /// Ticks fitted since the last [`RlsModel::reset`].
+    ticks: u32,
+    /// How many times P was reset to the prior because it had degenerated.
+    covariance_resets: u32,
+}
+
+impl<const S: usize, const A: usize, const R: usize> RlsModel<S, A, R> {
+    /// An empty model (W = 0, P = prior) with `config`, if it validates.
+    pub fn try_new(config: ModelConfig) -> Result<Self, Error> {
+        const { assert!(S > 0 && R > 0, "S and R must be positive") };
+        config.validate()?;
+        let mut covariance = SMatrix::<f32, R, R>::zeros();
+        covariance.fill_diagonal(config.prior_variance);
+        Ok(Self {
+            config,
+            weights: SMatrix::zeros(),
+            covariance,
+            mean_square_error: Vector::zeros(),
+            ticks: 0,
+            covariance_resets: 0,
+        })
+    }
+
+    /// Forgets everything learned: W = 0, P = prior, no error history.
+    pub fn reset(&mut self) {
+        self.weights.fill(0.0);
+        self.reset_covariance();
+        self.mean_square_error.fill(0.0);
+        self.ticks = 0;
+    }
+
+    fn reset_covariance(&mut self) {
+        self.covariance.fill(0.0);
+        self.covariance.fill_diagonal(self.config.prior_variance);
+    }
+
+    /// The constants.
+    pub fn config(&self) -> &ModelConfig {
+        &self.config
+    }
+
+    /// W (R × S): the predicted increment is Wᵀ·z.
+    pub fn weights(&self) -> &SMatrix<f32, R, S> {
+        &self.weights
+    }
+
+    /// P (R × R): the weights' covariance up to the noise variance.
+    pub fn covariance(&self) -> &SMatrix<f32, R, R> {
+        &self.covariance
+    }
+
+    /// Ticks fitted since the model was made or reset.
+    pub fn ticks(&self) -> u32 {
+        self.ticks
+    }
+
+    /// How many times P degenerated (a non-finite or non-positive variance) and was reset to
+    /// the prior, keeping W.
+    pub fn covariance_resets(&self) -> u32 {
+        self.covariance_resets
+    }
+
+    /// The predicted next state x + Wᵀ·z(state, command). Non-finite inputs give a
+    /// non-finite prediction (never a panic).
+    pub fn predict<M: Regressors<S, A, R>>(
+        &self,
+        map: &M,
+        state: &Vector<S>,
+        command: &Vector<A>,
+    ) -> Vector<S> {
+        let z = map.regressors(state, command);
+        state + self.weights.tr_mul(&z)
+    }
+
+    /// Fits one tick: `state` and `command` led to `next`. Returns the a-priori one-step
+    /// error (next − prediction before the fit).
+    ///
+    /// A non-finite `state`, `command`, `next` or regressor, or a tick so large that the fit
+    /// overflows f32, is refused ([`Error::NonFinite`] naming the input) and the model is left
+    /// unchanged.
+    pub fn update<M: Regressors<S, A, R>>(
+        &mut self,
+        map: &M,
+        state: &Vector<S>,
+        command: &Vector<A>,
+        next: &Vector<S>,
+    ) -> Result<Vector<S>, Error> {
+        require_finite(state.iter(), "state")?;
+        require_finite(command.iter(), "command")?;
+        require_finite(next.iter(), "next")?;
+        let z = map.regressors(state, command);
+        require_finite(z.iter(), "regressors")?;
+        let increment = next - state;
+        require_finite(increment.iter(), "next")?;
+
+        let error = increment - self.weights.tr_mul(&z);
+        require_finite(error.iter(), "next")?;
+        let lambda = self.config.forgetting;
+        let pz = self.covariance * z;
+        let denominator = lambda + z.dot(&pz);
+        // P is kept positive semi-definite, so only an overflow makes this fail: z is finite
+        // but too large for f32.
+        require(denominator.is_finite() && denominator > 0.0, "regressors")
+            .map_err(|_| Error::NonFinite("regressors"))?;
+        let gain = pz / denominator;
+        let weights = self.weights + gain * error.transpose();
+        require_finite(weights.iter(), "regressors")?;
+        self.weights = weights;
+        // P − k (Pz)ᵀ, with P symmetric so that zᵀP = (Pz)ᵀ; then /λ and conditioned.
+        self.covariance -= gain * pz.transpose();
+        self.covariance /= lambda;
+        self.condition_covariance();
+
+        self.ticks = self.ticks.saturating_add(1);
+        let n = self.ticks.min(self.config.error_window) as f32;
+        for (ms, e) in self.mean_square_error.iter_mut().zip(error.iter()) {
+            let square = e * e;
+            // A finite error whose square overflows counts as the largest f32.
+            let square = if square.is_finite() { square } else { f32::MAX };
+            *ms += (square - *ms) / n;
+        }
+        Ok(error)
+    }
+
+    /// Symmetrises P and bounds its diagonal (see the module docs).
+    fn condition_covariance(&mut self) {
+        for i in 0..R {
+            for j in (i + 1)..R {
+                let mean = 0.5 * (self.covariance[(i, j)] + self.covariance[(j, i)]);
+                self.covariance[(i, j)] = mean;
+                self.covariance[(j, i)] = mean;
+            }
+        }
+        let degenerate = self
+            .covariance
+            .diagonal()
+            .iter()
+            .any(|d| !(d.is_finite() && *d > 0.0))
+            || self.covariance.iter().any(|p| !p.is_finite());
+        if degenerate {
+            self.reset_covariance();
+            self.covariance_resets = self.covariance_resets.saturating_add(1);
+            return;
+        }
+        let max = self.config.max_variance;
+        let scale = Vector::<R>::from_fn(|i, _| {
+            let d = self.covariance[(i, i)];
+            if d > max { libm::sqrtf(max / d) } else { 1.0 }
+        });
+        if scale.iter().any(|s| *s < 1.0) {
+            for j in 0..R {
+                for i in 0..R {
+                    self.covariance[(i, j)] *= scale[i] * scale[j];
+                }
+            }
+        }
+    }
+
+    /// The running root-mean-square one-step (a-priori) error per state dimension: the mean
+    /// over the fitted ticks, exponential over the last `error_window` of them once there are
+    /// more. Zero before the first tick.
+    pub fn one_step_error(&self) -> Vector<S> {
+        self.mean_square_error.map(libm::sqrtf)
+    }
+
+    /// The root-mean-square error per state dimension of an open-loop, multi-step prediction
+    /// of a recorded episode: from `states[0]`, the model is rolled forward with the recorded
+    /// `commands` (`commands[k]` led from `states[k]` to `states[k + 1]`) and compared with
+    /// every later recorded state. The model is not changed.
+    ///
+    /// Errors: `states.len() != commands.len() + 1` or no command
+    /// ([`Error::InvalidParameter`]`("commands")`); a non-finite recorded value
+    /// ([`Error::NonFinite`]); a rollout that diverges ([`Error::NonFinite`]`("prediction")`).
+    pub fn episode_error<M: Regressors<S, A, R>>(
+        &self,
+        map: &M,
+        states: &[Vector<S>],
+        commands: &[Vector<A>],
+    ) -> Result<Vector<S>, Error> {
+        require(
+            !commands.is_empty() && states.len() == commands.len() + 1,
+            "commands",
+        )?;
+        require_finite(states.iter().flat_map(|s| s.iter()), "states")?;
+        require_finite(commands.iter().flat_map(|u| u.iter()), "commands")?;
+        let mut predicted = states[0];
+        let mut sum = Vector::<S>::zeros();
+        for (command, actual) in commands.iter().zip(&states[1..]) {
+            predicted = self.predict(map, &predicted, command);
+            require_finite(predicted.iter(), "prediction")?;
+            let e = actual - predicted;
+            sum += e.component_mul(&e);
+        }
+        let rms = (sum / commands.len() as f32).map(libm::sqrtf);
+        require_finite(rms.iter(), "prediction")?;
+        Ok(rms)
+    }
+
+    /// Checks a model that was decoded rather than built: a valid config, finite weights and
+    /// errors, and a finite symmetric covariance with a positive diagonal within the bound.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.config.validate()?;
+        require_finite(self.weights.iter(), "weights")?;
+        require_finite(self.covariance.iter(), "covariance")?;
+        require_finite(self.mean_square_error.iter(), "mean_square_error")?;
+        require(
+            self.mean_square_error.iter().all(|m| *m >= 0.0),
+            "mean_square_error",
+        )?;
+        let max = self.config.max_variance;
+        require(
+            self.covariance
+                .diagonal()
+                .iter()
+                .all(|d| *d > 0.0 && *d <= max * (1.0 + 1e-5)),
+            "covariance",
+        )?;
+        for i in 0..R {
+            for j in (i + 1)..R {
+                require(
+                    self.covariance[(i, j)] == self.covariance[(j, i)],
+                    "covariance",
+                )?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `Ok` when every value is finite, else [`Error::NonFinite`] naming `field`.
+fn require_finite<'a>(
+    values: impl IntoIterator<Item = &'a f32>,
+    field: &'static str,
+) -> Result<(), Error> {
+    if values.into_iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::NonFinite(field))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{Affine, AffineWith};
+    use proptest::prelude::*;
+
+    /// A deterministic pseudo-random excitation in [−1, 1].
+    fn excitation(k: u32, salt: u32) -> f32 {
+        let h = (k.wrapping_mul(2_654_435_761) ^ salt.wrapping_mul(40_503)).rotate_left(13);
+        (h % 20_001) as f32 / 10_000.0 - 1.0
+    }
+
+    fn plant(x: &Vector<2>, u: &Vector<1>) -> Vector<2> {
+        Vector::<2>::new(x[0] + 0.1 * x[1], 0.95 * x[1] + 0.2 * u[0] + 0.05)
+    }
+
+    #[test]
+    fn identifies_an_affine_plant() {
+        let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let mut x = Vector::<2>::zeros();
+        for k in 0..2000 {
+            let u = Vector::<1>::new(excitation(k, 1) - 0.3 * x[0]);
+            let next = plant(&x, &u);
+            model.update(&Affine, &x, &u, &next).unwrap();
+            x = next;
+        }
+        let (x, u) = (Vector::<2>::new(0.5, -0.2), Vector::<1>::new(0.7));
+        let error = model.predict(&Affine, &x, &u) - plant(&x, &u);
+        assert!(error.amax() < 1e-3, "{error}");
+        assert_eq!(model.ticks(), 2000);
+        assert_eq!(model.covariance_resets(), 0);
+        assert!(model.one_step_error().amax() < 1e-2);
+        model.validate().unwrap();
+    }
+
+    #[test]
+    fn user_features_capture_quadratic_drag() {
+        // v' = v + 0.1 (u − 2 |v| v): not affine, but affine in [v, u, 1, |v| v].
+        let drag =
+            AffineWith::new(|x: &Vector<1>, _: &Vector<1>| Vector::<1>::new(x[0].abs() * x[0]));
+        let mut with = RlsModel::<1, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let mut without = RlsModel::<1, 1, 3>::try_new(ModelConfig::DEFAULT).unwrap();
+        let mut v = Vector::<1>::zeros();
+        for k in 0..3000 {
+            let u = Vector::<1>::new(3.0 * excitation(k, 7));
+            let next = Vector::<1>::new(v[0] + 0.1 * (u[0] - 2.0 * v[0].abs() * v[0]));
+            with.update(&drag, &v, &u, &next).unwrap();
+            without.update(&Affine, &v, &u, &next).unwrap();
+            v = next;
+        }
+        assert!((with.weights()[(3, 0)] + 0.2).abs() < 1e-3);
+        assert!(with.one_step_error()[0] < 1e-2);
+        assert!(without.one_step_error()[0] > 10.0 * with.one_step_error()[0]);
+    }
+
+    #[test]
+    fn refuses_non_finite_ticks_and_changes_nothing() {
+        let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let (x, u) = (Vector::<2>::new(0.1, 0.2), Vector::<1>::new(0.3));
+        model.update(&Affine, &x, &u, &plant(&x, &u)).unwrap();
+        let before = model;
+        let nan = Vector::<2>::new(f32::NAN, 0.0);
+        let inf = Vector::<1>::new(f32::INFINITY);
+        assert_eq!(
+            model.update(&Affine, &nan, &u, &x),
+            Err(Error::NonFinite("state"))
+        );
+        assert_eq!(
+            model.update(&Affine, &x, &inf, &x),
+            Err(Error::NonFinite("command"))
+        );
+        assert_eq!(
+            model.update(&Affine, &x, &u, &nan),
+            Err(Error::NonFinite("next"))
+        );
+        let big = Vector::<2>::new(f32::MAX, -f32::MAX);
+        assert_eq!(
+            model.update(&Affine, &big, &u, &Vector::<2>::new(-f32::MAX, f32::MAX)),
+            Err(Error::NonFinite("next"))
+        );
+        assert_eq!(model, before);
+    }
+
+    #[test]
+    fn forgetting_tracks_a_changed_plant() {
+        let config = ModelConfig {
+            forgetting: 0.98,
+            ..ModelConfig::DEFAULT
+        };
+        let mut model = RlsModel::<1, 1, 3>::try_new(config).unwrap();
+        let mut x = Vector::<1>::zeros();
+        for k in 0..1000 {
+            let gain = if k < 500 { 0.5 } else { -0.5 };
+            let u = Vector::<1>::new(excitation(k, 3));
+            let next = Vector::<1>::new(0.9 * x[0] + gain * u[0]);
+            model.update(&Affine, &x, &u, &next).unwrap();
+            x = next;
+        }
+        assert!((model.weights()[(1, 0)] + 0.5).abs() < 1e-2);
+    }
+
+    #[test]
+    fn covariance_stays_bounded_and_symmetric_without_excitation() {
+        let config = ModelConfig {
+            forgetting: 0.9,
+            max_variance: 1e3,
+            ..ModelConfig::DEFAULT
+        };
+        let mut model = RlsModel::<2, 1, 4>::try_new(config).unwrap();
+        // The same tick 10 000 times: only one direction of R^4 is excited.
+        let (x, u) = (Vector::<2>::new(0.3, -0.1), Vector::<1>::new(0.2));
+        for _ in 0..10_000 {
+            model.update(&Affine, &x, &u, &plant(&x, &u)).unwrap();
+        }
+        model.validate().unwrap();
+        assert!(model.covariance().diagonal().amax() <= 1e3 * (1.0 + 1e-5));
+        let error = model.predict(&Affine, &x, &u) - plant(&x, &u);
+        assert!(error.amax() < 1e-3);
+    }
+
+    #[test]
+    fn episode_error_of_an_exact_model_is_small_and_lengths_are_checked() {
+        let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let mut states = [Vector::<2>::zeros(); 51];
+        let mut commands = [Vector::<1>::zeros(); 50];
+        for round in 0..20 {
+            for k in 0..50 {
+                commands[k] = Vector::<1>::new(excitation(k as u32, round) - 0.3 * states[k][0]);
+                states[k + 1] = plant(&states[k], &commands[k]);
+                model
+                    .update(&Affine, &states[k], &commands[k], &states[k + 1])
+                    .unwrap();
+            }
+        }
+        let rms = model.episode_error(&Affine, &states, &commands).unwrap();
+        assert!(rms.amax() < 1e-2, "{rms}");
+        assert_eq!(
+            model.episode_error(&Affine, &states[..50], &commands),
+            Err(Error::InvalidParameter("commands"))
+        );
+        assert_eq!(
+            model.episode_error(&Affine, &states[..1], &commands[..0]),
+            Err(Error::InvalidParameter("commands"))
+        );
+    }
+
+    #[test]
+    fn config_is_checked() {
+        for (config, field) in [
+            (
+                ModelConfig {
+                    forgetting: 1.01,
+                    ..ModelConfig::DEFAULT
+                },
+                "forgetting",
+            ),
+            (
+                ModelConfig {
+                    forgetting: f32::NAN,
+                    ..ModelConfig::DEFAULT
+                },
+                "forgetting",
+            ),
+            (
+                ModelConfig {
+                    prior_variance: 0.0,
+                    ..ModelConfig::DEFAULT
+                },
+                "prior_variance",
+            ),
+            (
+                ModelConfig {
+                    max_variance: 1.0,
+                    ..ModelConfig::DEFAULT
+                },
+                "max_variance",
+            ),
+            (
+                ModelConfig {
+                    error_window: 0,
+                    ..ModelConfig::DEFAULT
+                },
+                "error_window",
+            ),
+        ] {
+            assert_eq!(
+                RlsModel::<1, 1, 3>::try_new(config),
+                Err(Error::InvalidParameter(field))
+            );
+        }
+    }
+
+    #[test]
+    fn fits_the_cortex_m4f_budget() {
+        // The AUV: S = 6, A = 3, [x, u, 1] plus 4 features of the user's.
+        let bytes = core::mem::size_of::<RlsModel<6, 3, 14>>();
+        assert!(bytes <= 4096, "{bytes}");
+        assert_eq!(bytes, 4 * (14 * 6 + 14 * 14 + 6 + 4) + 4 + 4);
+    }
+
+    #[cfg(feature = "serde")]
+    #[test]
+    fn round_trips_through_postcard_and_decoded_state_is_checked() {
+        let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let mut x = Vector::<2>::zeros();
+        for k in 0..100 {
+            let u = Vector::<1>::new(excitation(k, 5));
+            let next = plant(&x, &u);
+            model.update(&Affine, &x, &u, &next).unwrap();
+            x = next;
+        }
+        let mut buffer = [0u8; 512];
+        let bytes = postcard::to_slice(&model, &mut buffer).unwrap();
+        let decoded: RlsModel<2, 1, 4> = postcard::from_bytes(bytes).unwrap();
+        assert_eq!(decoded, model);
+        decoded.validate().unwrap();
+        let mut forged = model;
+        forged.covariance[(0, 1)] += 1.0;
+        assert_eq!(
+            forged.validate(),
+            Err(Error::InvalidParameter("covariance"))
+        );
+        let mut forged = model;
+        forged.weights[(2, 1)] = f32::NAN;
+        assert_eq!(forged.validate(), Err(Error::NonFinite("weights")));
+    }
+
+    fn any_f32() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            4 => -10.0f32..10.0,
+            1 => any::<f32>(),
+            1 => Just(f32::NAN),
+            1 => Just(f32::MAX),
+            1 => Just(1e20f32),
+        ]
+    }
+
+    proptest! {
+        /// Any sequence of ticks, finite or not, huge or not: no panic, and what is left is a
+        /// model that validates, whose predictions of finite inputs are not NaN unless the
+        /// weights overflowed, which they may not.
+        #[test]
+        fn never_panics_and_stays_valid(
+            ticks in proptest::collection::vec(proptest::array::uniform6(any_f32()), 1..60),
+            forgetting in 0.5f32..=1.0,
+        ) {
+            let config = ModelConfig { forgetting, ..ModelConfig::DEFAULT };
+            let mut model = RlsModel::<2, 1, 4>::try_new(config).unwrap();
+            let drag = AffineWith::new(|x: &Vector<2>, _: &Vector<1>| Vector::<1>::new(x[1].abs() * x[1]));
+            let mut dragged = RlsModel::<2, 1, 5>::try_new(config).unwrap();
+            for t in &ticks {
+                let x = Vector::<2>::new(t[0], t[1]);
+                let u = Vector::<1>::new(t[2]);
+                let next = Vector::<2>::new(t[3], t[4]);
+                let before = model;
+                if model.update(&Affine, &x, &u, &next).is_err() {
+                    prop_assert_eq!(model, before);
+                }
+                let _ = dragged.update(&drag, &x, &u, &next);
+                let _ = model.predict(&Affine, &x, &u);
+            }
+            prop_assert!(model.validate().is_ok());
+            prop_assert!(dragged.validate().is_ok());
+            prop_assert!(model.one_step_error().iter().all(|e| *e >= 0.0));
+        }
+    }
+}
