@@ -1,0 +1,68 @@
+"""Wall time of a CMA-ES search on ctrl_adapt.pool (a persistent process pool) with 1 and then
+2 workers, and the ratio: trials that burn a fixed amount of CPU time each (a stand-in for a
+simulator), so the figure is the pool's, not a plant's.
+
+    python python/bench/pool_workers.py [--trial-cpu 0.5] [--dimension 2] [--generations 2]
+
+At n = 2 CMA-ES's population is λ = 6: each generation is 6 trials, 3 per worker with two.
+Prints a Markdown table. A shared machine (other processes on its cores) slows both runs.
+"""
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+import ctrl_adapt
+import ctrl_adapt.pool
+
+
+def burn(theta, cpu):
+    """Busy for `cpu` seconds of this process's CPU time; returns the sphere cost."""
+    t0 = time.process_time()
+    x = 0.0
+    while time.process_time() - t0 < cpu:
+        for _ in range(1000):
+            x += 1.0
+    return float(np.sum(np.asarray(theta) ** 2))
+
+
+class Trial:
+    """Picklable: the CPU time per trial."""
+
+    def __init__(self, cpu):
+        self.cpu = cpu
+
+    def __call__(self, theta):
+        return burn(theta, self.cpu)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--trial-cpu", type=float, default=0.5, help="CPU seconds per trial")
+    p.add_argument("--dimension", type=int, default=2)
+    p.add_argument("--generations", type=int, default=2)
+    a = p.parse_args(argv)
+    n = a.dimension
+    lam = int(ctrl_adapt.rust_type("cmaes", n).split(",")[1].strip(" >"))
+    budget = lam * a.generations
+    print(f"command: python {' '.join([os.path.relpath(sys.argv[0])] + list(argv or sys.argv[1:]))}")
+    print(f"CMA-ES n = {n}, λ = {lam}, {budget} trials of {a.trial_cpu} s CPU; {os.cpu_count()} CPUs\n")
+    rows = []
+    for workers in (1, 2):
+        start = time.perf_counter()
+        result = ctrl_adapt.pool.minimize(Trial(a.trial_cpu), -np.ones(n), np.ones(n), algorithm="cmaes",
+                                          budget=budget, workers=workers, seed=1)
+        rows.append((workers, time.perf_counter() - start, result))
+    print("| workers | trials | wall time (s) | ratio to 1 worker | best cost |")
+    print("| --- | --- | --- | --- | --- |")
+    for workers, wall, result in rows:
+        print(f"| {workers} | {result.evaluations} | {wall:.2f} | {wall / rows[0][1]:.2f} | {result.cost:.3e} |")
+    same = rows[0][2].optimizer.save() == rows[1][2].optimizer.save()
+    print(f"\nsame final state with 1 and 2 workers: {same}")
+
+
+if __name__ == "__main__":
+    main()
