@@ -2,7 +2,11 @@
 2 workers, and the ratio: trials that burn a fixed amount of CPU time each (a stand-in for a
 simulator), so the figure is the pool's, not a plant's.
 
-    python python/bench/pool_workers.py [--trial-cpu 0.5] [--dimension 2] [--generations 2]
+    python python/bench/pool_workers.py [--trial-cpu 0.5] [--dimension 2] [--generations 2] [--tune]
+
+With ``--tune``, the same search also through Ray Tune (``CtrlAdaptSearch``, a local Ray
+cluster of as many CPUs as workers, ``reuse_actors=True``, ``max_concurrent_trials`` the
+workers), Ray's start-up apart.
 
 At n = 2 CMA-ES's population is λ = 6: each generation is 6 trials, 3 per worker with two.
 Prints a Markdown table. A shared machine (other processes on its cores) slows both runs.
@@ -11,6 +15,7 @@ Prints a Markdown table. A shared machine (other processes on its cores) slows b
 import argparse
 import os
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -39,11 +44,43 @@ class Trial:
         return burn(theta, self.cpu)
 
 
+def tune_trial(config):
+    """A Ray trial: the candidate's CPU burn; its config carries the CPU time."""
+    theta = [config[f"x{i}"] for i in range(config["n"])]
+    return {"cost": burn(theta, config["cpu"])}
+
+
+def run_tune(n, budget, cpu, workers):
+    import ray
+    from ray import tune
+
+    from ctrl_adapt.tune import CtrlAdaptSearch
+
+    space = {f"x{i}": (-1.0, 1.0) for i in range(n)}
+    search = CtrlAdaptSearch(space, algorithm="cmaes", seed=1, metric="cost", mode="min")
+    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    try:
+        tuner = tune.Tuner(
+            tune_trial,
+            param_space={"n": n, "cpu": cpu},
+            tune_config=tune.TuneConfig(search_alg=search, num_samples=budget, reuse_actors=True,
+                                        max_concurrent_trials=workers),
+            run_config=tune.RunConfig(verbose=0, storage_path=tempfile.mkdtemp(prefix="pool-bench-")),
+        )
+        start = time.perf_counter()
+        tuner.fit()
+        wall = time.perf_counter() - start
+    finally:
+        ray.shutdown()
+    return wall, search
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--trial-cpu", type=float, default=0.5, help="CPU seconds per trial")
     p.add_argument("--dimension", type=int, default=2)
     p.add_argument("--generations", type=int, default=2)
+    p.add_argument("--tune", action="store_true", help="also through Ray Tune")
     a = p.parse_args(argv)
     n = a.dimension
     lam = int(ctrl_adapt.rust_type("cmaes", n).split(",")[1].strip(" >"))
@@ -62,6 +99,13 @@ def main(argv=None):
         print(f"| {workers} | {result.evaluations} | {wall:.2f} | {wall / rows[0][1]:.2f} | {result.cost:.3e} |")
     same = rows[0][2].optimizer.save() == rows[1][2].optimizer.save()
     print(f"\nsame final state with 1 and 2 workers: {same}")
+    if a.tune:
+        tuned = [(workers, *run_tune(n, budget, a.trial_cpu, workers)) for workers in (1, 2)]
+        print("\n| Ray workers | trials | most in flight | tuning wall time (s) | ratio to 1 worker | best cost |")
+        print("| --- | --- | --- | --- | --- | --- |")
+        for workers, wall, search in tuned:
+            print(f"| {workers} | {search.optimizer.evaluations} | {search.peak_in_flight} | {wall:.2f} | "
+                  f"{wall / tuned[0][1]:.2f} | {search.best()[1]:.3e} |")
 
 
 if __name__ == "__main__":
