@@ -9,7 +9,9 @@ cluster of as many CPUs as workers, ``reuse_actors=True``, ``max_concurrent_tria
 workers), Ray's start-up apart.
 
 At n = 2 CMA-ES's population is λ = 6: each generation is 6 trials, 3 per worker with two.
-Prints a Markdown table. A shared machine (other processes on its cores) slows both runs.
+Prints a Markdown table with the cores the trials got (their CPU time over the wall time): on
+a shared machine other processes take cores, and a second worker gains only if a second core
+is free.
 """
 
 import argparse
@@ -35,12 +37,15 @@ def burn(theta, cpu):
 
 
 class Trial:
-    """Picklable: the CPU time per trial."""
+    """Picklable: the CPU time per trial (or, with `sleep`, wall time spent sleeping)."""
 
-    def __init__(self, cpu):
-        self.cpu = cpu
+    def __init__(self, cpu, sleep=False):
+        self.cpu, self.sleep = cpu, sleep
 
     def __call__(self, theta):
+        if self.sleep:
+            time.sleep(self.cpu)
+            return float(np.sum(np.asarray(theta) ** 2))
         return burn(theta, self.cpu)
 
 
@@ -81,22 +86,27 @@ def main(argv=None):
     p.add_argument("--dimension", type=int, default=2)
     p.add_argument("--generations", type=int, default=2)
     p.add_argument("--tune", action="store_true", help="also through Ray Tune")
+    p.add_argument("--sleep", action="store_true",
+                   help="trials sleep instead of burning CPU: the pool's overlap without the cores")
     a = p.parse_args(argv)
     n = a.dimension
     lam = int(ctrl_adapt.rust_type("cmaes", n).split(",")[1].strip(" >"))
     budget = lam * a.generations
     print(f"command: python {' '.join([os.path.relpath(sys.argv[0])] + list(argv or sys.argv[1:]))}")
-    print(f"CMA-ES n = {n}, λ = {lam}, {budget} trials of {a.trial_cpu} s CPU; {os.cpu_count()} CPUs\n")
+    print(f"CMA-ES n = {n}, λ = {lam}, {budget} trials of {a.trial_cpu} s {'asleep' if a.sleep else 'CPU'}; {os.cpu_count()} CPUs\n")
     rows = []
     for workers in (1, 2):
         start = time.perf_counter()
-        result = ctrl_adapt.pool.minimize(Trial(a.trial_cpu), -np.ones(n), np.ones(n), algorithm="cmaes",
+        result = ctrl_adapt.pool.minimize(Trial(a.trial_cpu, a.sleep), -np.ones(n), np.ones(n), algorithm="cmaes",
                                           budget=budget, workers=workers, seed=1)
         rows.append((workers, time.perf_counter() - start, result))
-    print("| workers | trials | wall time (s) | ratio to 1 worker | best cost |")
-    print("| --- | --- | --- | --- | --- |")
+    # Cores used: the trials' CPU time over the wall time. Below 1 with one worker, the
+    # machine's other processes held the cores; a second worker gains only what it can get.
+    print("| workers | trials | wall time (s) | ratio to 1 worker | cores used | best cost |")
+    print("| --- | --- | --- | --- | --- | --- |")
     for workers, wall, result in rows:
-        print(f"| {workers} | {result.evaluations} | {wall:.2f} | {wall / rows[0][1]:.2f} | {result.cost:.3e} |")
+        used = float("nan") if a.sleep else result.evaluations * a.trial_cpu / wall
+        print(f"| {workers} | {result.evaluations} | {wall:.2f} | {wall / rows[0][1]:.2f} | {used:.2f} | {result.cost:.3e} |")
     same = rows[0][2].optimizer.save() == rows[1][2].optimizer.save()
     print(f"\nsame final state with 1 and 2 workers: {same}")
     if a.tune:
