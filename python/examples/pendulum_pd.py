@@ -25,11 +25,12 @@ continues from (the board's own episodes then count), and the learning curve is 
     python python/examples/pendulum_pd.py            # 98 trials of 4 × 1,000 steps
     python python/examples/pendulum_pd.py --short    # 28 trials of 1 × 300 steps (CI)
 
-Workers. An episode here takes 4 to 25 ms of CPU (300 to 1,000 MuJoCo steps), so a trial of
-four episodes is about 0.1 s, no longer than Ray's own cost per trial: a second worker does not
-pay for itself on a two-core machine, and the default is one. A simulator whose trials take
-seconds (many or long episodes) gains from ``--workers`` up to the CMA-ES population (7 here);
-``ctrl_adapt.pool`` is the cheaper path on one machine.
+Workers. An episode here takes 12 to 110 ms of CPU (a fall within about 85 steps, up to 1,000
+steps survived; measured on a two-core machine shared with other builds), so a trial of four
+episodes is 0.05 to 0.45 s, not much longer than Ray's own cost per trial: a second worker
+did not pay for itself on that machine, and the default is one. A simulator whose trials
+take seconds (many or long episodes) gains from ``--workers`` up to the CMA-ES population (7
+here); ``ctrl_adapt.pool`` is the cheaper path on one machine.
 
 Options: ``--workers N`` (Ray CPUs, default 1), ``--out DIR`` (default
 ``target/pendulum-pd``), ``--seed S``. Everything is seeded: the initial states, the
