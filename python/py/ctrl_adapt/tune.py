@@ -16,7 +16,8 @@ Example (``episodes`` is your trainable, returning ``{"cost": ...}`` for a confi
                              start={"kp": 1.0, "kd": 0.1}, seed=1, initial_sigma=0.3,
                              metric="cost", mode="min")
     tune.Tuner(episodes, tune_config=tune.TuneConfig(
-        search_alg=search, num_samples=200, reuse_actors=True)).fit()
+        search_alg=search, num_samples=200, reuse_actors=True,
+        max_concurrent_trials=2)).fit()   # your workers, at most search.max_concurrent
     search.write_record("global.rec")   # -> "Cmaes<2, 6>", the type the firmware loads
 
 ``reuse_actors=True`` keeps Ray's cost per trial at a fraction of a second; without it,
