@@ -178,6 +178,9 @@ pub trait Dynamic: Send + Sync {
     fn best(&self) -> Option<(Vec<f32>, f32)>;
     /// The candidate asked and not yet told.
     fn pending(&self) -> Option<Vec<f32>>;
+    /// What to deploy: the model's estimate of the minimum where the algorithm keeps one
+    /// ([`Recommend`]), else the best candidate told (`None` before any).
+    fn recommend(&self) -> Option<Vec<f32>>;
     /// Costs told so far.
     fn evaluations(&self) -> u32;
     /// Running, converged or out of budget.
@@ -204,6 +207,45 @@ pub trait Dynamic: Send + Sync {
     fn boxed_clone(&self) -> Box<dyn Dynamic>;
 }
 
+/// The point an algorithm's model recommends deploying, apart from the best candidate
+/// measured: a sampling distribution's mean (CEM, CMA-ES), ROCK*'s θ*, LineBo's posterior
+/// minimum. `None` for the algorithms without such a model (their best candidate is it).
+pub trait Recommend<const N: usize> {
+    /// The recommended θ, in parameter units.
+    fn recommend(&self) -> Option<Vector<N>> {
+        None
+    }
+}
+
+impl<const N: usize> Recommend<N> for CoordinateSearch<N> {}
+impl<const N: usize> Recommend<N> for Sracos<N> {}
+impl<const N: usize, const S: usize> Recommend<N> for ControlledRandomSearch<N, S> {}
+impl<const N: usize, const S: usize> Recommend<N> for TwoPhase<ControlledRandomSearch<N, S>, N> {}
+
+impl<const N: usize, const S: usize, const E: usize> Recommend<N> for DiagonalCem<N, S, E> {
+    fn recommend(&self) -> Option<Vector<N>> {
+        Some(*self.mean())
+    }
+}
+
+impl<const N: usize, const L: usize> Recommend<N> for Cmaes<N, L> {
+    fn recommend(&self) -> Option<Vector<N>> {
+        Some(self.mean())
+    }
+}
+
+impl<const N: usize, const M: usize> Recommend<N> for Rockstar<N, M> {
+    fn recommend(&self) -> Option<Vector<N>> {
+        Some(self.theta_star())
+    }
+}
+
+impl<const N: usize, const M: usize> Recommend<N> for LineBo<N, M> {
+    fn recommend(&self) -> Option<Vector<N>> {
+        Some(self.origin())
+    }
+}
+
 /// An optimizer of dimension `N` behind [`Dynamic`], with room for [`IN_FLIGHT`]
 /// candidates in flight.
 #[derive(Clone)]
@@ -226,7 +268,7 @@ fn record_of<T: Persistent>(value: &T) -> Result<Vec<u8>, RecordError> {
 
 impl<O, const N: usize> Dynamic for Held<O, N>
 where
-    O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
+    O: Generation<N> + Recommend<N> + Persistent + Clone + Send + Sync + 'static,
     InFlight<O, N, IN_FLIGHT>: Steps<N>,
 {
     fn dimension(&self) -> usize {
@@ -245,6 +287,13 @@ where
         self.0
             .best()
             .map(|Best { theta, cost }| (theta.as_slice().to_vec(), cost))
+    }
+
+    fn recommend(&self) -> Option<Vec<f32>> {
+        match self.0.optimizer().recommend() {
+            Some(theta) => Some(theta.as_slice().to_vec()),
+            None => self.best().map(|(theta, _)| theta),
+        }
     }
 
     fn pending(&self) -> Option<Vec<f32>> {
@@ -360,7 +409,7 @@ fn vector<const N: usize>(values: &[f32], name: &str) -> Result<Vector<N>, Build
 
 fn held<O, const N: usize>(o: O) -> Box<dyn Dynamic>
 where
-    O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
+    O: Generation<N> + Recommend<N> + Persistent + Clone + Send + Sync + 'static,
     InFlight<O, N, IN_FLIGHT>: Steps<N>,
 {
     Box::new(Held::<O, N>(InFlight::new(o)))
@@ -370,7 +419,7 @@ where
 /// `InFlight<O, N, IN_FLIGHT>`.
 fn held_record<O, const N: usize>(bytes: &[u8]) -> Result<Box<dyn Dynamic>, RecordError>
 where
-    O: Generation<N> + Persistent + Clone + Send + Sync + 'static,
+    O: Generation<N> + Recommend<N> + Persistent + Clone + Send + Sync + 'static,
     InFlight<O, N, IN_FLIGHT>: Steps<N>,
 {
     match record::load::<O>(bytes) {
@@ -404,7 +453,9 @@ where
             Bounds::<N>::try_new(vector(spec.lower, "lower")?, vector(spec.upper, "upper")?)?;
         let start = match spec.start {
             Some(start) => vector::<N>(start, "start")?,
-            None => (bounds.lower() + bounds.upper()) * 0.5,
+            // Halves first: `(lower + upper) * 0.5` overflows f32 for bounds near its
+            // limits (the same value otherwise, halving being exact).
+            None => bounds.lower() * 0.5 + bounds.upper() * 0.5,
         };
         if spec.start.is_some() && !spec.algorithm.takes_start() {
             return Err(BuildError::Config(format!(
@@ -501,8 +552,45 @@ fn compiled_population(n: usize) -> Option<usize> {
     at_dimension!(n, population,)
 }
 
-/// Builds `spec` at the dimension of its bounds.
+/// The stack of the thread that builds, loads and copies the optimizers ([`on_large_stack`]).
+/// Reserved address space, committed only as far as it is touched.
+pub const LARGE_STACK: usize = 256 << 20;
+
+/// `work` run on a thread of its own with a stack of [`LARGE_STACK`] bytes, whatever the
+/// caller's thread has.
+///
+/// The library's constructors and `record::load` return the state by value (it is
+/// `#![forbid(unsafe_code)]`, so nothing constructs it in place on the heap), and this
+/// crate is compiled unoptimised (the table of instances is large; the steps are optimised
+/// in `python/hot`): its frames then hold several whole copies of a state, which is up to
+/// hundreds of kilobytes at n = 64 (a CRS set of 10(n + 1) points, a CMA-ES covariance,
+/// LineBo's GP). Boxing the result does not remove those temporaries, and a secondary
+/// thread's stack may be 512 KiB (macOS) or less: building, loading and copying therefore
+/// run here, at the cost of one thread start (tens of microseconds) per call.
+pub fn on_large_stack<T: Send>(work: impl FnOnce() -> T + Send) -> Result<T, String> {
+    std::thread::scope(|scope| {
+        let handle = std::thread::Builder::new()
+            .name("ctrl-adapt-build".into())
+            .stack_size(LARGE_STACK)
+            .spawn_scoped(scope, work)
+            .map_err(|e| format!("cannot start the thread that builds the optimizer: {e}"))?;
+        handle
+            .join()
+            .map_err(|_| "the thread that builds the optimizer panicked".to_string())
+    })
+}
+
+/// Builds `spec` at the dimension of its bounds (on a large stack: [`on_large_stack`]).
 pub fn build(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
+    on_large_stack(|| build_here(spec)).unwrap_or_else(|e| Err(BuildError::Config(e)))
+}
+
+/// A copy of `optimizer` in the same state (on a large stack: [`on_large_stack`]).
+pub fn copy(optimizer: &dyn Dynamic) -> Result<Box<dyn Dynamic>, String> {
+    on_large_stack(|| optimizer.boxed_clone())
+}
+
+fn build_here(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
     let n = spec.lower.len();
     at_dimension!(n, build, spec).unwrap_or_else(|| {
         Err(BuildError::Dimension(format!(
@@ -512,8 +600,15 @@ pub fn build(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
 }
 
 /// Loads a record of any compiled algorithm and dimension: the one whose type the record
-/// names (its shape), with its algorithm.
-pub fn load(bytes: &[u8]) -> Result<(Algorithm, Box<dyn Dynamic>), RecordError> {
+/// names (its shape), with its algorithm (on a large stack: [`on_large_stack`]; `Err(Err(why))`
+/// if that thread could not run).
+pub fn load(bytes: &[u8]) -> Result<(Algorithm, Box<dyn Dynamic>), Result<RecordError, String>> {
+    on_large_stack(|| load_here(bytes))
+        .map_err(Err)?
+        .map_err(Ok)
+}
+
+fn load_here(bytes: &[u8]) -> Result<(Algorithm, Box<dyn Dynamic>), RecordError> {
     // Every other error than a mismatched shape is the record's own: report it at once.
     for n in 1..=MAX_DIMENSION {
         for algorithm in Algorithm::ALL {

@@ -156,8 +156,16 @@ impl PyOptimizer {
         dispatch::rust_type(self.algorithm, self.inner.dimension())
     }
 
-    /// The next candidate (float64 values of the library's float32 ones).
+    /// The next candidate (float64 values of the library's float32 ones). Raises
+    /// `OptimizerError` while a candidate is pending (asked, not yet told: `tell` its cost
+    /// first; `suggest`/`report` hold several in flight) or tickets are outstanding.
     fn ask<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        if self.inner.pending().is_some() {
+            return Err(optimizer_error(
+                "ask: a candidate is pending (asked, not told): tell its cost first, or use \
+                 suggest/report to have several candidates in flight (pending() returns it)",
+            ));
+        }
         let theta = self.inner.ask(&mut self.rng).map_err(optimizer_error)?;
         Ok(array(py, &theta))
     }
@@ -230,6 +238,13 @@ impl PyOptimizer {
             .map(|(theta, cost)| (array(py, &theta), f64::from(cost)))
     }
 
+    /// The point to deploy: the sampling distribution's mean (CEM, CMA-ES), ROCK*'s θ*,
+    /// LineBo's posterior minimum; the best candidate told for the other algorithms (`None`
+    /// before any).
+    fn recommend<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        self.inner.recommend().map(|theta| array(py, &theta))
+    }
+
     /// The candidate asked and not yet told, or `None`.
     fn pending<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
         self.inner.pending().map(|theta| array(py, &theta))
@@ -262,7 +277,10 @@ impl PyOptimizer {
     #[staticmethod]
     #[pyo3(signature = (record, seed=0))]
     fn load(record: &[u8], seed: u64) -> PyResult<Self> {
-        let (algorithm, inner) = dispatch::load(record).map_err(record_error)?;
+        let (algorithm, inner) = dispatch::load(record).map_err(|e| match e {
+            Ok(e) => record_error(e),
+            Err(why) => record_error(why),
+        })?;
         Ok(Self {
             algorithm,
             inner,
@@ -271,12 +289,12 @@ impl PyOptimizer {
     }
 
     /// A copy in the same state, RNG included.
-    fn copy(&self) -> Self {
-        Self {
+    fn copy(&self) -> PyResult<Self> {
+        Ok(Self {
             algorithm: self.algorithm,
-            inner: self.inner.boxed_clone(),
+            inner: dispatch::copy(self.inner.as_ref()).map_err(optimizer_error)?,
             rng: self.rng.clone(),
-        }
+        })
     }
 
     fn __repr__(&self) -> String {
@@ -289,11 +307,11 @@ impl PyOptimizer {
         )
     }
 
-    fn __copy__(&self) -> Self {
+    fn __copy__(&self) -> PyResult<Self> {
         self.copy()
     }
 
-    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> PyResult<Self> {
         self.copy()
     }
 }

@@ -94,8 +94,8 @@ def test_a_failed_trial_hands_its_candidate_out_again(result, error):
     assert s.optimizer.evaluations == len(handed) and s.cancelled == 1
 
 
-def test_with_a_penalty_a_failed_trial_is_reported_at_that_value():
-    s = searcher(mode="max", metric="score", penalty=-100.0)
+def test_with_a_failure_value_a_failed_trial_is_reported_at_that_value():
+    s = searcher(mode="max", metric="score", failure_value=-100.0, max_retries=0)
     first = s.suggest("t0")
     s.on_trial_complete("t0", None, error=True)
     assert s.cancelled == 0 and s.optimizer.evaluations == 1
@@ -104,8 +104,8 @@ def test_with_a_penalty_a_failed_trial_is_reported_at_that_value():
     s.on_trial_complete("t1", {"score": -2.0})
     # mode="max": the better trial is the higher score, and best() says it in the metric.
     assert s.best()[1] == -2.0
-    with pytest.raises(ValueError, match="penalty"):
-        searcher(penalty=float("nan"))
+    with pytest.raises(ValueError, match="failure_value"):
+        searcher(failure_value=float("nan"))
 
 
 def test_it_says_finished_once_the_optimizer_stops():
@@ -147,6 +147,74 @@ def test_bad_spaces_are_refused_with_the_parameter_named():
         CtrlAdaptSearch({"a": (0, 1), "b": (0, 1)}, optimizer=optimizer())
     with pytest.raises(RuntimeError, match="search space"):
         CtrlAdaptSearch(metric="cost", mode="min").suggest("t0")
+
+
+def test_a_list_is_refused_as_a_range_instead_of_passed_as_a_constant():
+    with pytest.raises(ValueError, match=r"`b` is a list \[0.0, 1.0\]: a range is a tuple"):
+        CtrlAdaptSearch({"a": (0.0, 1.0), "b": [0.0, 1.0]}, algorithm="cmaes")
+    # Other values stay constants.
+    s = CtrlAdaptSearch({"a": (0.0, 1.0), "env": "pendulum"}, algorithm="cmaes",
+                        metric="cost", mode="min")
+    assert s.parameter_names == ["a"] and s.suggest("t0")["env"] == "pendulum"
+
+
+def test_a_loguniform_parameter_is_searched_as_its_logarithm():
+    s = CtrlAdaptSearch({"lr": tune.loguniform(1e-4, 1e-1), "kp": tune.quniform(0.0, 4.0, 0.5)},
+                        algorithm="cmaes", seed=2, start={"lr": 1e-2, "kp": 1.0},
+                        metric="cost", mode="min")
+    opt = s.optimizer
+    assert np.allclose(opt.recommend(), [math.log(1e-2), 1.0], atol=1e-6)
+    configs = [s.suggest(f"t{i}") for i in range(opt.max_in_flight)]
+    for i, c in enumerate(configs):
+        assert 1e-4 * (1 - 1e-6) <= c["lr"] <= 1e-1 * (1 + 1e-6)
+        assert c["kp"] % 0.5 == 0
+        s.on_trial_complete(f"t{i}", {"cost": (math.log10(c["lr"]) + 3) ** 2})
+    assert opt.evaluations == len(configs)
+
+
+def test_points_to_evaluate_run_first_and_count_in_best():
+    s = searcher(points_to_evaluate=[{"a": 0.5, "b": -0.4, "c": 0.3}])
+    assert s.suggest("p0") == {"a": 0.5, "b": -0.4, "c": 0.3}
+    s.on_trial_complete("p0", {"cost": 0.0})
+    config = s.suggest("t1")
+    s.on_trial_complete("t1", {"cost": quadratic(config)})
+    assert s.best() == ({"a": 0.5, "b": -0.4, "c": 0.3}, 0.0)
+    s.add_evaluated_point({"a": 0.0, "b": 0.0, "c": 0.0}, 0.5)
+    assert s.evaluated_points[-1] == ({"a": 0.0, "b": 0.0, "c": 0.0}, 0.5)
+    assert s.optimizer.evaluations == 1  # they do not enter the firmware's state
+
+
+def test_a_candidate_that_always_fails_is_retried_a_bounded_number_of_times():
+    s = searcher(optimizer("coordinate"), max_retries=2)
+    config = s.suggest("t0")
+    s.on_trial_complete("t0", {"cost": 1.0})  # a measured cost: the worst so far is 1.0
+    bad = s.suggest("t1")
+    trials = 1
+    for attempt in range(3):  # the first failure and two retries
+        s.on_trial_complete(f"t{trials}", None, error=True)
+        trials += 1
+        again = s.suggest(f"t{trials}")
+        if attempt < 2:
+            assert again == bad
+    assert again != bad  # after two retries it was reported at the worst metric seen
+    assert s.cancelled == 2 and len(s.penalised) == 1 and s.penalised[0][1] == 1.0
+    assert s.optimizer.evaluations == 2
+
+
+def test_the_concurrency_limit_is_the_optimizers_within_tunes():
+    s = searcher(optimizer("cmaes"))
+    assert s.max_concurrent == s.optimizer.max_in_flight > 2
+    assert s.set_max_concurrency(2) is True and s.max_concurrent == 2
+    assert s.suggest("t0") and s.suggest("t1") and s.suggest("t2") is None
+    s.on_trial_complete("t0", {"cost": 1.0})
+    assert s.suggest("t3") is not None
+
+
+def test_cmaes_own_penalty_setting_reaches_the_optimizer():
+    s = CtrlAdaptSearch(SPACE, algorithm="cmaes", penalty=3.0, metric="cost", mode="min")
+    assert s.optimizer.evaluations == 0
+    with pytest.raises(ctrl_adapt.OptimizerError, match="penalty"):
+        CtrlAdaptSearch(SPACE, algorithm="cmaes", penalty=-1.0)
 
 
 def test_the_written_record_is_the_firmware_types_state(tmp_path):

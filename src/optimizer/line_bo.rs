@@ -435,6 +435,13 @@ impl<const N: usize, const M: usize> LineBo<N, M> {
         &self.config
     }
 
+    /// The origin of the current (or next) line in parameter units: θ⁰ until the first
+    /// line ends, then the posterior mean's minimiser on the last line ended (the policy
+    /// to deploy).
+    pub fn origin(&self) -> Vector<N> {
+        self.unit.theta_of(&self.origin)
+    }
+
     /// Episodes the GP holds (at most `M`).
     pub fn remembered(&self) -> usize {
         self.gp.len()

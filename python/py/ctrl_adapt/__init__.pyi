@@ -1,4 +1,4 @@
-from typing import Any, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -29,6 +29,7 @@ class Optimizer:
     def ask(self) -> npt.NDArray[np.float64]: ...
     def tell(self, cost: float) -> None: ...
     def best(self) -> Optional[Tuple[npt.NDArray[np.float64], float]]: ...
+    def recommend(self) -> Optional[npt.NDArray[np.float64]]: ...
     def pending(self) -> Optional[npt.NDArray[np.float64]]: ...
     def suggest(self) -> Optional[Tuple[int, npt.NDArray[np.float64]]]: ...
     def report(self, ticket: int, cost: float) -> None: ...
@@ -55,3 +56,25 @@ class Optimizer:
     def capacity(self) -> int: ...
     @property
     def max_in_flight(self) -> int: ...
+
+class MinimizeResult:
+    theta: Optional[npt.NDArray[np.float64]]
+    cost: Optional[float]
+    recommended: Optional[npt.NDArray[np.float64]]
+    evaluations: int
+    status: str
+    optimizer: Optimizer
+    def __init__(self, optimizer: Optimizer) -> None: ...
+    def __iter__(self) -> Any: ...
+
+def minimize(
+    f: Callable[[npt.NDArray[np.float64]], float],
+    lower: _Vector,
+    upper: _Vector,
+    *,
+    algorithm: str = "cmaes",
+    budget: int = 200,
+    seed: int = 0,
+    start: Optional[_Vector] = None,
+    **config: Any,
+) -> MinimizeResult: ...

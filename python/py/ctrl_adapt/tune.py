@@ -16,19 +16,25 @@ Example (``episodes`` is your trainable, returning ``{"cost": ...}`` for a confi
                              start={"kp": 1.0, "kd": 0.1}, seed=1, initial_sigma=0.3,
                              metric="cost", mode="min")
     tune.Tuner(episodes, tune_config=tune.TuneConfig(
-        search_alg=search, num_samples=200, reuse_actors=True)).fit()
+        search_alg=search, num_samples=200, reuse_actors=True,
+        max_concurrent_trials=2)).fit()   # your workers, at most search.max_concurrent
     search.write_record("global.rec")   # -> "Cmaes<2, 6>", the type the firmware loads
 
 ``reuse_actors=True`` keeps Ray's cost per trial at a fraction of a second; without it,
 each trial starts a worker process (seconds).
 
 Failed trials. A trial that raised, or whose result lacks the metric or holds a non-finite
-one (NaN, ±inf, or beyond float32), did not measure its candidate. By default its ticket is
-*cancelled*: the optimizer hands the same candidate out again to a later trial, so a crash
-of one simulator worker loses no candidate and biases nothing (a candidate that fails every
-time is retried until Tune's ``num_samples`` runs out). With ``penalty=`` a value of the
-metric, the failed trial is *reported* with that value instead (for simulators where a
-failure means the candidate is bad, e.g. a physics blow-up).
+one (NaN, ±inf, or beyond float32), did not measure its candidate. Its candidate is handed out
+again to a later trial, up to ``max_retries`` times (default 2: a crash of one simulator worker
+loses no candidate and biases nothing); a candidate that keeps failing is then reported at
+``failure_value`` (a value of the metric) or, by default, at the worst metric seen so far, and
+listed in ``search.penalised``, so that it cannot take every trial of the run.
+
+Parallel trials. The searcher hands out at most the optimizer's ``max_in_flight`` candidates at
+once (``search.max_concurrent``; 1 for the sequential algorithms) and honours Tune's
+``max_concurrent_trials``. A trial is worth a worker only when it is long against Ray's cost
+per trial (tens of milliseconds with ``reuse_actors=True``): run several episodes per trial.
+Without Ray, :mod:`ctrl_adapt.pool` evaluates generations on a persistent process pool.
 """
 
 from __future__ import annotations
@@ -42,9 +48,9 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from ray.tune.search import UNDEFINED_METRIC_MODE, UNDEFINED_SEARCH_SPACE, Searcher
-from ray.tune.search.sample import Float, Uniform
+from ray.tune.search.sample import Float, LogUniform, Quantized, Uniform
 from ray.tune.search.variant_generator import parse_spec_vars
-from ray.tune.utils.util import unflatten_dict
+from ray.tune.utils.util import flatten_dict, unflatten_dict
 
 import ctrl_adapt
 
@@ -53,7 +59,7 @@ __all__ = ["CtrlAdaptSearch", "write_record"]
 logger = logging.getLogger(__name__)
 
 _F32_MAX = float(np.finfo(np.float32).max)
-_STATE_VERSION = 1
+_STATE_VERSION = 2
 
 #: A search space: each parameter's name (``"a/b"`` for a nested one) and either its
 #: ``(lower, upper)`` bounds or a ``tune.uniform(lower, upper)``; other values are passed
@@ -63,7 +69,14 @@ Space = Mapping[str, Any]
 
 def write_record(optimizer: "ctrl_adapt.Optimizer", path: Union[str, os.PathLike]) -> str:
     """Write ``optimizer``'s state, a record of its Rust type, to ``path`` for the firmware,
-    atomically (a temporary file renamed over ``path``), and return the Rust type's name.
+    atomically and durably, and return the Rust type's name.
+
+    The record goes to a temporary file ``.NAME.record-PID-*`` beside ``path``, which is
+    fsync'ed, given the mode a plain ``open`` would (``0o666`` less the umask), renamed over
+    ``path``, and the directory fsync'ed: after a crash or power cut ``path`` holds the old
+    record or the new one, whole. On any exception the temporary file is removed; one left
+    by a process killed mid-write (SIGKILL) is removed by the next ``write_record`` to the
+    same path.
 
     On the board, ``ctrl_adapt::record::load::<T>(&bytes)`` with ``T`` the returned type
     (e.g. ``Cmaes<5, 8>``) continues from that state; ``best()`` is the best candidate.
@@ -82,16 +95,83 @@ def write_record(optimizer: "ctrl_adapt.Optimizer", path: Union[str, os.PathLike
             "loads records saved with nothing in flight (run it first)"
         )
     data = optimizer.save()
+    path = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=".record-")
+    prefix = f".{os.path.basename(path)}.record-"
+    _remove_stale_temporaries(directory, prefix)
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f"{prefix}{os.getpid()}-")
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+            f.flush()
+            # mkstemp makes the file 0600: give it the mode open() would (0666 less the umask).
+            os.fchmod(f.fileno(), 0o666 & ~_umask())
+            os.fsync(f.fileno())  # the data is on disk before the name points at it
         os.replace(tmp, path)
     except BaseException:
-        os.unlink(tmp)
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
         raise
+    _fsync_directory(directory)  # and the rename itself
     return optimizer.rust_type
+
+
+def _umask() -> int:
+    """The process's umask (read from /proc where it can be, which changes nothing)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _remove_stale_temporaries(directory: str, prefix: str) -> None:
+    """Removes the temporary files of :func:`write_record`s to the same path that were
+    killed mid-write (named ``.NAME.record-PID-*``; PID no longer running on this host)."""
+    try:
+        names = os.listdir(directory)
+    except OSError:
+        return
+    for name in names:
+        if not name.startswith(prefix):
+            continue
+        pid = name[len(prefix) :].split("-", 1)[0]
+        if not pid.isdigit() or int(pid) == os.getpid() or _running(int(pid)):
+            continue
+        try:
+            os.unlink(os.path.join(directory, name))
+        except OSError:
+            pass
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # e.g. another user's process
+        return True
+    return True
+
+
+def _fsync_directory(directory: str) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:  # not on every platform (Windows)
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def _finite_cost(value: Any) -> Optional[float]:
@@ -103,49 +183,107 @@ def _finite_cost(value: Any) -> Optional[float]:
     return cost if math.isfinite(cost) and abs(cost) <= _F32_MAX else None
 
 
-def _parse_space(space: Space) -> Tuple[List[str], List[float], List[float], Dict[str, Any]]:
-    """Names, lower and upper bounds of the searched parameters, and the constant entries."""
+class _Scale:
+    """How a searched parameter maps to the optimizer's coordinate: ``log`` (the optimizer
+    searches its natural logarithm; ``tune.loguniform``) and ``q`` (the value handed to a
+    trial is rounded to a multiple of ``q``; ``tune.quniform``/``qloguniform``)."""
 
-    def ranges(value: Any) -> Any:  # (lower, upper) → a uniform float domain, at any depth
+    __slots__ = ("log", "q")
+
+    def __init__(self, log: bool, q: Optional[float]) -> None:
+        self.log, self.q = log, q
+
+    def value(self, x: float) -> float:
+        v = math.exp(x) if self.log else x
+        if self.q:
+            v = float(np.round(v / self.q) * self.q)
+        return v
+
+    def coordinate(self, v: float) -> float:
+        return math.log(v) if self.log else v
+
+
+def _parse_space(space: Space) -> Tuple[List[str], List[float], List[float], List[_Scale], Dict[str, Any]]:
+    """Names, the optimizer's lower and upper bounds and the scale of each searched
+    parameter, and the constant entries."""
+
+    def ranges(value: Any, path: Tuple[str, ...]) -> Any:  # (lower, upper) → a uniform domain
         if isinstance(value, Mapping):
-            return {name: ranges(v) for name, v in value.items()}
+            return {name: ranges(v, path + (str(name),)) for name, v in value.items()}
         if isinstance(value, tuple) and len(value) == 2:
             return Float(float(value[0]), float(value[1])).uniform()
+        if (
+            isinstance(value, list)
+            and len(value) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        ):
+            raise ValueError(
+                f"CtrlAdaptSearch: parameter `{'/'.join(path)}` is a list {value!r}: a range is "
+                "a tuple (lower, upper) or tune.uniform(lower, upper); to pass two numbers "
+                "unchanged to every trial, give them as a NumPy array"
+            )
         return value
 
-    constants, domains, grids = parse_spec_vars(ranges(space))
+    constants, domains, grids = parse_spec_vars(ranges(space, ()))
     if grids:
         raise ValueError("CtrlAdaptSearch: grid_search parameters cannot be searched")
-    names, lower, upper = [], [], []
+    names, lower, upper, scales = [], [], [], []
     for path, domain in domains:
-        name = "/".join(path)
-        if not (isinstance(domain, Float) and isinstance(domain.get_sampler(), Uniform)):
+        name = "/".join(map(str, path))
+        sampler = domain.get_sampler() if isinstance(domain, Float) else None
+        q = None
+        if isinstance(sampler, Quantized):
+            q, sampler = float(sampler.q), sampler.get_sampler()
+        if not isinstance(sampler, (Uniform, LogUniform)):
             raise ValueError(
-                f"CtrlAdaptSearch: parameter `{name}` must be a float range, (lower, upper) or "
-                f"tune.uniform(lower, upper); got {type(domain).__name__}"
+                f"CtrlAdaptSearch: parameter `{name}` must be a float range: (lower, upper), "
+                "tune.uniform, tune.quniform, tune.loguniform or tune.qloguniform; got "
+                f"{type(domain).__name__}"
+                + (f" with a {type(sampler).__name__} sampler" if sampler is not None else "")
             )
+        log = isinstance(sampler, LogUniform)
+        lo, hi = float(domain.lower), float(domain.upper)
+        if log and not (0 < lo < hi):
+            raise ValueError(f"CtrlAdaptSearch: loguniform parameter `{name}` needs 0 < lower < upper")
         names.append(name)
-        lower.append(float(domain.lower))
-        upper.append(float(domain.upper))
-    return names, lower, upper, {"/".join(map(str, path)): value for path, value in constants}
+        scales.append(_Scale(log, q))
+        lower.append(math.log(lo) if log else lo)
+        upper.append(math.log(hi) if log else hi)
+    constants = {"/".join(map(str, path)): value for path, value in constants}
+    return names, lower, upper, scales, constants
 
 
 class CtrlAdaptSearch(Searcher):
     """A Ray Tune searcher handing out the candidates of a :class:`ctrl_adapt.Optimizer`.
 
-    ``space`` maps parameter names to ``(lower, upper)`` or ``tune.uniform(lower, upper)``
-    (or comes from the Tuner's ``param_space``). The optimizer is either given
+    ``space`` maps parameter names to ``(lower, upper)``, ``tune.uniform``,
+    ``tune.quniform``, ``tune.loguniform`` or ``tune.qloguniform`` (or comes from the
+    Tuner's ``param_space``); other values are constants passed to every trial. A list
+    ``[lower, upper]`` is refused (it would otherwise be a constant). A log-scaled
+    parameter is searched as its natural logarithm: the optimizer's bounds, ``start`` and
+    the record firmware loads are in that coordinate. The optimizer is either given
     (``optimizer=``, built over the same box, its dimension the number of parameters) or
-    built from ``algorithm``, the space's bounds, ``start`` (a dict by name or a vector),
-    ``seed`` and ``config`` (fields of the algorithm's configuration, as for
-    :class:`ctrl_adapt.Optimizer`). ``mode="max"`` reports ``-metric`` as the cost.
+    built from ``algorithm``, the space's bounds, ``start`` (a dict by name or a vector, in
+    parameter units), ``seed`` and ``config`` (fields of the algorithm's configuration, as
+    for :class:`ctrl_adapt.Optimizer`, e.g. CMA-ES's ``penalty``). ``mode="max"`` reports
+    ``-metric`` as the cost.
+
+    ``points_to_evaluate`` (a list of configurations, dicts by parameter name) are run
+    first, as are points given to :meth:`add_evaluated_point`; the optimizer's state (the
+    firmware's type) cannot take costs of points it did not propose, so they do not steer
+    the search, but :meth:`best` compares them with its candidates.
 
     ``suggest`` returns a trial's configuration, ``None`` while the optimizer has
-    ``max_in_flight`` candidates out (or cannot hand out more before some are reported), and
-    ``Searcher.FINISHED`` once it has stopped (converged or its budget spent). A failed trial
-    is cancelled (its candidate handed out again) or, with ``penalty``, reported with that
-    value of the metric. ``save``/``restore`` go through the optimizer's record and the
-    trial → ticket map, so trials still running at a checkpoint are accepted after it.
+    ``max_in_flight`` candidates out (or Tune's limit, :meth:`set_max_concurrency`, is
+    reached, or it cannot hand out more before some are reported), and
+    ``Searcher.FINISHED`` once it has stopped (converged or its budget spent).
+
+    Failed trials (raised, or no finite metric): the candidate is handed out again, up to
+    ``max_retries`` times; after that it is reported at ``failure_value`` if given, else at
+    the worst metric seen so far (retried again while no trial has succeeded), and listed
+    in :attr:`penalised`. With ``failure_value`` set and ``max_retries=0`` a failure is
+    reported at once. ``save``/``restore`` go through the optimizer's record and the trial
+    → ticket map, so trials still running at a checkpoint are accepted after it.
     """
 
     def __init__(
@@ -158,25 +296,45 @@ class CtrlAdaptSearch(Searcher):
         seed: int = 0,
         metric: Optional[str] = None,
         mode: Optional[str] = None,
-        penalty: Optional[float] = None,
+        points_to_evaluate: Optional[Sequence[Mapping[str, Any]]] = None,
+        max_retries: int = 2,
+        failure_value: Optional[float] = None,
         **config: Any,
     ) -> None:
         super().__init__(metric=metric, mode=mode)
-        if penalty is not None and _finite_cost(penalty) is None:
-            raise ValueError(f"CtrlAdaptSearch: penalty must be finite in float32, got {penalty!r}")
+        if failure_value is not None and _finite_cost(failure_value) is None:
+            raise ValueError(
+                f"CtrlAdaptSearch: failure_value must be finite in float32, got {failure_value!r}"
+            )
+        if int(max_retries) < 0:
+            raise ValueError(f"CtrlAdaptSearch: max_retries must be ≥ 0, got {max_retries!r}")
         self._optimizer = optimizer
         self._algorithm = algorithm
         self._start = start
         self._seed = int(seed)
         self._config = config
-        self._penalty = penalty
+        self._failure_value = failure_value
+        self._max_retries = int(max_retries)
+        self._max_concurrent: Optional[int] = None
         self._names: List[str] = []
+        self._scales: List[_Scale] = []
         self._constants: Dict[str, Any] = {}
         self._trials: Dict[str, int] = {}
+        self._failures: Dict[bytes, int] = {}
+        self._thetas: Dict[int, bytes] = {}
+        self._worst: Optional[float] = None
+        self._points: List[Dict[str, Any]] = [dict(p) for p in (points_to_evaluate or [])]
+        self._point_trials: Dict[str, Dict[str, Any]] = {}
         #: ``(trial_id, metric)`` of every reported trial, in the order reported.
         self.history: List[Tuple[str, float]] = []
-        #: Trials whose candidate was cancelled (failed, no finite metric) and handed out again.
+        #: Failed trials whose candidate was handed out again.
         self.cancelled = 0
+        #: ``(trial_id, metric)`` of the failed trials reported at a penalty (after
+        #: ``max_retries`` retries): the metric is the one reported for them.
+        self.penalised: List[Tuple[str, float]] = []
+        #: ``(configuration, metric)`` of the points evaluated outside the optimizer
+        #: (``points_to_evaluate``, :meth:`add_evaluated_point`).
+        self.evaluated_points: List[Tuple[Dict[str, Any], float]] = []
         #: The most candidates that were out at once.
         self.peak_in_flight = 0
         if space:
@@ -185,7 +343,7 @@ class CtrlAdaptSearch(Searcher):
     # -- setting up -----------------------------------------------------------------------
 
     def _set_space(self, space: Space) -> None:
-        names, lower, upper, constants = _parse_space(space)
+        names, lower, upper, scales, constants = _parse_space(space)
         if not names:
             raise ValueError("CtrlAdaptSearch: the space has no parameter to search")
         if self._optimizer is None:
@@ -195,6 +353,8 @@ class CtrlAdaptSearch(Searcher):
                 if missing:
                     raise ValueError(f"CtrlAdaptSearch: start has no value for {sorted(missing)}")
                 start = [start[name] for name in names]
+            if start is not None:
+                start = [scale.coordinate(float(v)) for scale, v in zip(scales, start)]
             self._optimizer = ctrl_adapt.Optimizer(
                 self._algorithm, np.array(lower), np.array(upper), start, seed=self._seed, **self._config
             )
@@ -203,7 +363,7 @@ class CtrlAdaptSearch(Searcher):
                 f"CtrlAdaptSearch: the optimizer has {self._optimizer.dimension} parameters, "
                 f"the space {len(names)} ({names})"
             )
-        self._names, self._constants = names, constants
+        self._names, self._scales, self._constants = names, scales, constants
 
     def set_search_properties(
         self, metric: Optional[str], mode: Optional[str], config: Dict, **spec: Any
@@ -219,6 +379,25 @@ class CtrlAdaptSearch(Searcher):
         if not self._names and config:
             self._set_space(config)
         return True
+
+    def set_max_concurrency(self, max_concurrent: int) -> bool:
+        """Tune's limit on concurrent trials (``TuneConfig(max_concurrent_trials=...)`` or a
+        ``ConcurrencyLimiter``): the searcher hands out at most this many candidates at
+        once, and never more than the optimizer's :attr:`max_concurrent`. Returns ``True``
+        (the searcher enforces it itself)."""
+        self._max_concurrent = max(1, int(max_concurrent))
+        return True
+
+    @property
+    def max_concurrent(self) -> Optional[int]:
+        """The most trials worth running at once: the optimizer's ``max_in_flight`` (a
+        CMA-ES generation, a CEM batch; 1 for the sequential algorithms), within Tune's
+        limit if one was set; ``None`` until the space is known. Give Tune as many
+        workers (``max_concurrent_trials``), more are idle."""
+        if self._optimizer is None:
+            return None
+        limit = self._optimizer.max_in_flight
+        return limit if self._max_concurrent is None else min(limit, self._max_concurrent)
 
     @property
     def optimizer(self) -> "ctrl_adapt.Optimizer":
@@ -240,6 +419,15 @@ class CtrlAdaptSearch(Searcher):
             raise RuntimeError(
                 UNDEFINED_METRIC_MODE.format(cls=type(self).__name__, metric=self._metric, mode=self._mode)
             )
+        running = len(opt.in_flight) + len(self._point_trials)
+        if self._max_concurrent is not None and running >= self._max_concurrent:
+            return None
+        if self._points:
+            point = self._points.pop(0)
+            self._point_trials[trial_id] = point
+            flat = dict(self._constants)
+            flat.update(flatten_dict(point, delimiter="/"))
+            return unflatten_dict(flat)
         if opt.status != "running":
             return Searcher.FINISHED
         if len(opt.in_flight) >= opt.max_in_flight:
@@ -249,30 +437,49 @@ class CtrlAdaptSearch(Searcher):
             return None
         ticket, theta = handed
         self._trials[trial_id] = ticket
+        self._thetas[ticket] = np.asarray(theta).tobytes()
         self.peak_in_flight = max(self.peak_in_flight, len(opt.in_flight))
         return self._configuration(theta)
 
     def _configuration(self, theta: Sequence[float]) -> Dict[str, Any]:
         flat = dict(self._constants)
-        flat.update(zip(self._names, (float(x) for x in theta)))
+        flat.update((n, sc.value(float(x))) for n, sc, x in zip(self._names, self._scales, theta))
         return unflatten_dict(flat)
 
     def _sign(self) -> float:
         return -1.0 if self._mode == "max" else 1.0
 
     def on_trial_complete(self, trial_id: str, result: Optional[Dict] = None, error: bool = False) -> None:
+        if trial_id in self._point_trials:
+            point = self._point_trials.pop(trial_id)
+            value = None if error or not result else result.get(self._metric)
+            self.add_evaluated_point(point, value, error=_finite_cost(value) is None)
+            return
         ticket = self._trials.pop(trial_id, None)
         if ticket is None:  # not handed out by this searcher (or already completed)
             return
         opt = self._optimizer
+        # A cancelled candidate comes back under a new ticket: failures are counted by θ.
+        key = self._thetas.pop(ticket, b"")
         value = None if error or not result else result.get(self._metric)
         cost = _finite_cost(value)
-        if cost is None and self._penalty is None:
-            opt.cancel(ticket)
-            self.cancelled += 1
-            return
         if cost is None:
-            value = cost = float(self._penalty)
+            failures = self._failures.get(key, 0) + 1
+            penalty = self._failure_value
+            if penalty is None and self._worst is not None:
+                penalty = self._sign() * self._worst
+            if failures <= self._max_retries or penalty is None:
+                self._failures[key] = failures
+                opt.cancel(ticket)
+                self.cancelled += 1
+                return
+            self._failures.pop(key, None)
+            value = cost = float(penalty)
+            self.penalised.append((trial_id, value))
+            logger.warning(
+                "CtrlAdaptSearch: trial %s failed %d times on one candidate; reported at %s",
+                trial_id, failures, value,
+            )
         try:
             opt.report(ticket, self._sign() * cost)
         except ctrl_adapt.OptimizerError:
@@ -280,15 +487,49 @@ class CtrlAdaptSearch(Searcher):
                 raise
             logger.info("CtrlAdaptSearch: trial %s completed after the optimizer stopped", trial_id)
             return
+        signed = self._sign() * cost
+        self._worst = signed if self._worst is None else max(self._worst, signed)
         self.history.append((trial_id, float(value)))
 
+    def add_evaluated_point(
+        self,
+        parameters: Dict,
+        value: float,
+        error: bool = False,
+        pruned: bool = False,
+        intermediate_values: Optional[List[float]] = None,
+    ) -> None:
+        """A configuration evaluated outside this searcher and its metric: kept in
+        :attr:`evaluated_points` and compared by :meth:`best` (the optimizer's state, the
+        firmware's type, takes costs only of the candidates it proposed, so it does not
+        steer the search). Ignored if ``error`` or the value is not finite."""
+        if error or _finite_cost(value) is None:
+            return
+        self.evaluated_points.append((dict(parameters), float(value)))
+
     def best(self) -> Optional[Tuple[Dict[str, Any], float]]:
-        """The best configuration reported so far and its metric, or ``None``."""
+        """The best configuration reported so far (the optimizer's candidates and the
+        :attr:`evaluated_points`) and its metric, or ``None``."""
+        found = []
         best = self._optimizer.best() if self._optimizer is not None else None
-        if best is None:
+        if best is not None:
+            theta, cost = best
+            found.append((self._configuration(theta), cost))
+        for point, value in self.evaluated_points:
+            flat = dict(self._constants)
+            flat.update(flatten_dict(point, delimiter="/"))
+            found.append((unflatten_dict(flat), self._sign() * value))
+        if not found:
             return None
-        theta, cost = best
-        return self._configuration(theta), self._sign() * cost
+        config, cost = min(found, key=lambda pair: pair[1])
+        return config, self._sign() * cost
+
+    def recommend(self) -> Optional[Dict[str, Any]]:
+        """The configuration the optimizer recommends deploying
+        (:meth:`ctrl_adapt.Optimizer.recommend`: CMA-ES's or CEM's mean, ROCK*'s θ*, ...),
+        which may not have been run; ``None`` before any result."""
+        theta = self._optimizer.recommend() if self._optimizer is not None else None
+        return None if theta is None else self._configuration(theta)
 
     def write_record(self, path: Union[str, os.PathLike]) -> str:
         """Write the optimizer's state as a record for the firmware (see :func:`write_record`)
