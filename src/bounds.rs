@@ -173,14 +173,9 @@ impl<const N: usize> UnitMap<N> {
     #[inline(always)]
     pub(crate) fn unit_in_box(&self, theta: &Vector<N>) -> Vector<N> {
         let mut x = self.unit_of(theta);
-        // Comparisons, not `f32::clamp` (see `Bounds::clamp`); NaN stays NaN.
-        x.apply(|v| {
-            if *v > 1.0 {
-                *v = 1.0;
-            } else if *v < -1.0 {
-                *v = -1.0;
-            }
-        });
+        // `clamp`'s `min <= max` assertion holds for these constants and is optimised away;
+        // NaN stays NaN.
+        x.apply(|v| *v = v.clamp(-1.0, 1.0));
         x
     }
 
