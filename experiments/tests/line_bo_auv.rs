@@ -168,6 +168,8 @@ fn settings_table(safe: bool, settings: &[(f32, f32, f32, u32)]) {
         "| ℓ | β | σ_f / bare | episodes per line | unsafe episodes | successes | median | deployed cost, median | episodes to success |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
+    // (successes, unsafe episodes, median, setting) of every row, for the rule below.
+    let mut rows = vec![];
     for &(length_scale, beta, signal, per_line) in settings {
         let (mut unsafe_episodes, mut firsts, mut deployed) = (0, vec![], vec![]);
         for &seed in &seeds {
@@ -212,44 +214,59 @@ fn settings_table(safe: bool, settings: &[(f32, f32, f32, u32)]) {
         println!(
             "| {length_scale} | {beta} | {signal} | {per_line} | {unsafe_episodes} | {successes}/{} | {:.1} | {:.3e} | {firsts:?} |",
             seeds.len(),
-            median(all),
+            median(all.clone()),
             median(deployed),
+        );
+        rows.push((
+            successes,
+            unsafe_episodes,
+            median(all),
+            (length_scale, beta, signal, per_line),
+        ));
+    }
+    // The rule the recommended settings are chosen by (on seeds 101–110, nominal conditions):
+    // among the settings that succeed on at least 9 seeds in 10 (if none does, those with the
+    // most successes), the fewest unsafe episodes, then the lower median episodes to success,
+    // then the earlier row.
+    let most = rows.iter().map(|r| r.0).max().unwrap_or(0);
+    let floor = (seeds.len() * 9).div_ceil(10).min(most);
+    let chosen = rows
+        .iter()
+        .filter(|r| r.0 >= floor)
+        .min_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)));
+    if let Some((successes, unsafe_episodes, median, (l, beta, signal, per_line))) = chosen {
+        println!(
+            "chosen (≥ {floor}/{} successes, fewest unsafe, then median): ℓ = {l}, β = {beta}, σ_f / bare = {signal}, {per_line} per line: {successes}/{}, median {median:.1}, {unsafe_episodes} unsafe",
+            seeds.len(),
+            seeds.len()
         );
     }
 }
 
-/// The safe variant's trade-off between unsafe episodes and learning.
-#[test]
-fn safe_settings_on_the_auv() {
-    settings_table(
-        true,
-        &[
-            (0.25, 2.0, 1.0, 3),
-            (0.15, 2.0, 1.0, 3),
-            (0.1, 2.0, 1.0, 3),
-            (0.15, 2.0, 1.0, 1),
-            (0.15, 3.0, 1.0, 3),
-            (0.1, 3.0, 1.0, 3),
-            (0.15, 2.0, 2.0, 1),
-            (0.1, 2.0, 2.0, 3),
-        ],
-    );
+/// The settings of both tables: ℓ ∈ {0.05, 0.1, 0.15, 0.2, 0.25, 0.4} of the box, β ∈ {2, 3},
+/// σ_f ∈ {1, 2} × the bare cost, 1, 2 or 3 episodes per line (72 settings).
+fn grid() -> Vec<(f32, f32, f32, u32)> {
+    let mut settings = vec![];
+    for per_line in [1, 2, 3] {
+        for signal in [1.0, 2.0] {
+            for beta in [2.0, 3.0] {
+                for length_scale in [0.05, 0.1, 0.15, 0.2, 0.25, 0.4] {
+                    settings.push((length_scale, beta, signal, per_line));
+                }
+            }
+        }
+    }
+    settings
 }
 
-/// Without a threshold: the length scale and the episodes per line.
+/// With the threshold (`linebo-safe`): the trade-off between unsafe episodes and learning.
+#[test]
+fn safe_settings_on_the_auv() {
+    settings_table(true, &grid());
+}
+
+/// Without a threshold (`linebo`).
 #[test]
 fn unthresholded_settings_on_the_auv() {
-    settings_table(
-        false,
-        &[
-            (0.1, 2.0, 1.0, 1),
-            (0.15, 2.0, 1.0, 1),
-            (0.2, 2.0, 1.0, 1),
-            (0.25, 2.0, 1.0, 1),
-            (0.4, 2.0, 1.0, 1),
-            (0.15, 2.0, 1.0, 2),
-            (0.15, 2.0, 1.0, 3),
-            (0.25, 2.0, 1.0, 3),
-        ],
-    );
+    settings_table(false, &grid());
 }
