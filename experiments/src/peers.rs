@@ -143,13 +143,25 @@ impl Conditions {
         ..Self::NOMINAL
     };
 
-    /// The conditions named `name` (`nominal`, `warm-up`, `rotated`).
+    /// The conditions named `name`: `nominal`, `warm-up`, `rotated`, or `warm-up:K` and
+    /// `rotated:DEGREES` for other amounts.
     pub fn parse(name: &str) -> Option<Self> {
-        match name {
-            "nominal" => Some(Self::NOMINAL),
-            "warm-up" => Some(Self::WARM_UP),
-            "rotated" => Some(Self::ROTATED),
-            _ => None,
+        match name.split_once(':') {
+            Some(("warm-up", k)) => Some(Self {
+                warm_up: k.parse().ok()?,
+                ..Self::NOMINAL
+            }),
+            Some(("rotated", deg)) => Some(Self {
+                current_rotation_deg: deg.parse().ok().filter(|d: &f64| d.is_finite())?,
+                ..Self::NOMINAL
+            }),
+            Some(_) => None,
+            None => match name {
+                "nominal" => Some(Self::NOMINAL),
+                "warm-up" => Some(Self::WARM_UP),
+                "rotated" => Some(Self::ROTATED),
+                _ => None,
+            },
         }
     }
 }

@@ -14,7 +14,8 @@
 //!
 //! The seeds are 1–10 (the reported block) unless `SEEDS` names others (`SEEDS=101-110`, the
 //! block the settings are chosen on, or a list `1,2,5`); the settings tables read
-//! `CONDITIONS` (`nominal`, the default, `warm-up` or `rotated`).
+//! `CONDITIONS` (`nominal`, the default, `warm-up` or `rotated`, or `warm-up:K`,
+//! `rotated:DEGREES`).
 
 #![cfg(not(debug_assertions))]
 
@@ -36,7 +37,7 @@ fn seeds() -> Vec<u64> {
 /// The conditions of `CONDITIONS`, nominal without it.
 fn conditions() -> Conditions {
     std::env::var("CONDITIONS").map_or(Conditions::NOMINAL, |c| {
-        Conditions::parse(&c).expect("CONDITIONS: nominal, warm-up or rotated")
+        Conditions::parse(&c).expect("CONDITIONS: nominal, warm-up[:K] or rotated[:DEGREES]")
     })
 }
 
