@@ -15,7 +15,8 @@
 //! The seeds are 1–10 (the reported block) unless `SEEDS` names others (`SEEDS=101-110`, the
 //! block the settings are chosen on, or a list `1,2,5`); the settings tables read
 //! `CONDITIONS` (`nominal`, the default, `warm-up` or `rotated`, or `warm-up:K`,
-//! `rotated:DEGREES`).
+//! `rotated:DEGREES`) and `SETTINGS` (rows `ℓ/β/σ_f/per-line`, comma-separated, instead of
+//! the grid).
 
 #![cfg(not(debug_assertions))]
 
@@ -260,14 +261,34 @@ fn grid() -> Vec<(f32, f32, f32, u32)> {
     settings
 }
 
+/// The settings of `SETTINGS` (`ℓ/β/σ_f/per-line,…`, e.g. `0.1/2/1/1,0.15/2/1/1`), else
+/// [`grid`].
+fn settings() -> Vec<(f32, f32, f32, u32)> {
+    let Ok(text) = std::env::var("SETTINGS") else {
+        return grid();
+    };
+    text.split(',')
+        .map(|row| {
+            let v: Vec<&str> = row.split('/').collect();
+            let f = |i: usize| {
+                v[i].trim()
+                    .parse::<f32>()
+                    .expect("SETTINGS: ℓ/β/σ_f/per-line")
+            };
+            assert_eq!(v.len(), 4, "SETTINGS: ℓ/β/σ_f/per-line");
+            (f(0), f(1), f(2), f(3) as u32)
+        })
+        .collect()
+}
+
 /// With the threshold (`linebo-safe`): the trade-off between unsafe episodes and learning.
 #[test]
 fn safe_settings_on_the_auv() {
-    settings_table(true, &grid());
+    settings_table(true, &settings());
 }
 
 /// Without a threshold (`linebo`).
 #[test]
 fn unthresholded_settings_on_the_auv() {
-    settings_table(false, &grid());
+    settings_table(false, &settings());
 }
