@@ -120,9 +120,8 @@ pub struct Conditions {
     /// learning episode k are those the nominal trial draws in episode k + `warm_up`. The
     /// bare controller's cost ([`Trial::start_cost`]) is then its first episode after them.
     pub warm_up: u32,
-    /// The current's direction turned about the vertical by this angle (degrees,
-    /// counter-clockwise seen from above: +90 turns +x into +y); its speed and depth as in
-    /// `AuvConfig::REAL`.
+    /// The current's direction turned about the vertical by this angle (degrees; +90 turns
+    /// +x into +y); its speed and depth as in `AuvConfig::REAL`.
     pub current_rotation_deg: f64,
 }
 
@@ -719,5 +718,26 @@ mod tests {
             // The bound's own episode is not counted as the trial's.
             assert_eq!(trial.evaluations(), 2);
         }
+    }
+
+    /// A warm-up episode shifts the disturbances by one episode: the warmed-up trial's bare
+    /// cost is the nominal trial's second episode of the bare controller. The nominal
+    /// conditions are `Trial::new`'s, and a turned current changes the cost.
+    #[test]
+    fn a_warm_up_episode_shifts_the_disturbances_by_one() {
+        let mut nominal = Trial::new(Task::Auv, 3);
+        let start = nominal.start().to_vec();
+        let first = nominal.score(&start).unwrap();
+        let second = nominal.score(&start).unwrap();
+        let warm = Trial::with_conditions(Task::Auv, 3, Conditions::WARM_UP);
+        assert_eq!(warm.start_cost(), Some(second));
+        assert_ne!(first, second);
+        let same = Trial::with_conditions(Task::Auv, 3, Conditions::parse("nominal").unwrap());
+        assert_eq!(same.start_cost(), Some(first));
+        let turned = Trial::with_conditions(Task::Auv, 3, Conditions::parse("rotated:30").unwrap());
+        assert_ne!(turned.start_cost(), Some(first));
+        assert_eq!(Conditions::parse("rotated:30"), Some(Conditions::ROTATED));
+        assert_eq!(Conditions::parse("warm-up:1"), Some(Conditions::WARM_UP));
+        assert_eq!(Conditions::parse("rotated:x"), None);
     }
 }

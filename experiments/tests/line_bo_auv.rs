@@ -16,7 +16,7 @@
 //! block the settings are chosen on, or a list `1,2,5`); the settings tables read
 //! `CONDITIONS` (`nominal`, the default, `warm-up` or `rotated`, or `warm-up:K`,
 //! `rotated:DEGREES`) and `SETTINGS` (rows `ℓ/β/σ_f/per-line`, comma-separated, instead of
-//! the grid).
+//! the grid); the methods tables keep only the methods of `METHODS` when it is set.
 
 #![cfg(not(debug_assertions))]
 
@@ -82,7 +82,13 @@ fn methods_table(task: Task, conditions: Conditions, methods: &[&str]) {
         "| method | successes | episodes to success, median [IQR] | deployed cost, median | optimizer µs/eval | unsafe episodes |"
     );
     println!("|---|---|---|---|---|---|");
-    for &method in methods {
+    // `METHODS` (comma-separated) keeps only those of `methods`.
+    let only = std::env::var("METHODS").ok();
+    let keep = |m: &str| {
+        only.as_deref()
+            .is_none_or(|o| o.split(',').any(|x| x.trim() == m))
+    };
+    for &method in methods.iter().filter(|m| keep(m)) {
         let (mut firsts, mut deployed, mut micros) = (vec![], vec![], vec![]);
         let (mut successes, mut unsafe_episodes) = (0, 0);
         for &seed in &seeds {
