@@ -208,9 +208,11 @@ def run_binding(algorithm, f, oracle, budget, seed):
     return oracle.unit(best[0] if best is not None else oracle.start)
 
 
-# LineBO's GP (experiments/src/peers.rs, `line_bo_config`), given to SafeOpt as well: the
-# cost minus the start's first cost, in units of it; a squared-exponential kernel of signal
-# σ_f = 1, length scale 0.15 of the box (0.3 in the [-1, 1] box), noise σ_n = 0.05; β = 2.
+# The GP LineBO had when the SafeOpt rows were measured (experiments/src/peers.rs,
+# `line_bo_config`, before its settings were re-chosen on seeds 101-110), given to SafeOpt:
+# the cost minus the start's first cost, in units of it; a squared-exponential kernel of
+# signal σ_f = 1, length scale 0.15 of the box (0.3 in the [-1, 1] box), noise σ_n = 0.05;
+# β = 2 (`linebo-safe` now has the same ℓ and β = 3).
 LENGTH_SCALE, NOISE, BETA = 0.3, 0.05, 2.0
 # Residuals clipped like LineBO's (a rejected θ scores +∞).
 CLIP = 1e6

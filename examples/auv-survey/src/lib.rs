@@ -197,9 +197,10 @@ pub fn cem(max_evaluations: u32) -> Result<AuvCem, Error> {
 /// (the LineBO experiments' `auv` trial). [`line_bo`] sets its GP's scale from it.
 pub const BARE_COST: f32 = 3.2;
 
-/// LineBO without a threshold over the AUV box from W = 0, with the settings of the host
-/// experiments (LineBO's rule: σ_f = the bare controller's cost, σ_n = 5 % of it; ℓ = 0.15
-/// of the box, β = 2, coordinate lines of one episode each), remembering
+/// LineBO without a threshold over the AUV box from W = 0, with the host experiments'
+/// earlier settings (LineBO's rule: σ_f = the bare controller's cost, σ_n = 5 % of it;
+/// ℓ = 0.15 of the box, β = 2, coordinate lines of one episode each; the experiments now
+/// recommend ℓ = 0.1, chosen on seeds 101–110: experiments/findings/line-bo.md), remembering
 /// [`LINE_BO_MEMORY`] episodes, at most `max_evaluations` episodes.
 pub fn line_bo(max_evaluations: u32) -> Result<AuvLineBo, Error> {
     let noise = 0.05 * BARE_COST;

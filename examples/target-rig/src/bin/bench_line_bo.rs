@@ -4,7 +4,8 @@
 //! for [`MEASURED`] evaluations of the ill-conditioned 18-D ellipsoid over the AUV box from
 //! 0: past the GP's filling and into its eviction.
 //!
-//! The settings follow LineBO's rule as the AUV experiments apply it: σ_f = the start's cost
+//! The settings follow LineBO's rule as the AUV experiments applied it before their settings
+//! were re-chosen on seeds 101–110 (experiments/findings/line-bo.md): σ_f = the start's cost
 //! J(0), σ_n = 5 % of it, ℓ = 0.15 of the box, β = 2; without a threshold one episode per
 //! coordinate line, with the threshold h = 1.2 J(0) (SafeOpt on the line) three.
 //!
