@@ -50,6 +50,8 @@ struct Setting {
 #[derive(Debug, Clone, Copy, Default)]
 struct Outcome {
     unsafe_episodes: u32,
+    /// Of the unsafe episodes, those the guard had tripped.
+    unsafe_tripped: u32,
     ticks_beyond: u32,
     tripped: u32,
     success: Option<u32>,
@@ -137,7 +139,9 @@ where
         if report.mode != Mode::Learn {
             break;
         }
-        outcome.unsafe_episodes += u32::from(report.cost > UNSAFE_RATIO * bare);
+        let unsafe_episode = report.cost > UNSAFE_RATIO * bare;
+        outcome.unsafe_episodes += u32::from(unsafe_episode);
+        outcome.unsafe_tripped += u32::from(unsafe_episode && report.trip.is_some());
         outcome.ticks_beyond += beyond;
         outcome.tripped += u32::from(report.trip.is_some());
         if report.cost < RADIUS && outcome.success.is_none() {
@@ -194,6 +198,7 @@ fn learners() -> [Learner; 3] {
 #[derive(Debug, Default)]
 struct Totals {
     unsafe_episodes: u32,
+    unsafe_tripped: u32,
     ticks_beyond: u32,
     tripped: u32,
     successes: u32,
@@ -203,6 +208,7 @@ struct Totals {
 impl Totals {
     fn add(&mut self, o: Outcome) {
         self.unsafe_episodes += o.unsafe_episodes;
+        self.unsafe_tripped += o.unsafe_tripped;
         self.ticks_beyond += o.ticks_beyond;
         self.tripped += o.tripped;
         if let Some(k) = o.success {
@@ -240,14 +246,15 @@ fn table(seeds: std::ops::RangeInclusive<u64>, setting: Setting) -> Vec<(String,
 
 fn print(rows: &[(String, Totals, Totals)]) {
     println!(
-        "| learner, current | unsafe episodes off / on | ticks beyond 8 m off / on | tripped (on) | successes off / on | median episodes to success off / on |"
+        "| learner, current | unsafe episodes off / on (on and tripped) | ticks beyond 8 m off / on | tripped (on) | successes off / on | median episodes to success off / on |"
     );
     println!("| --- | --- | --- | --- | --- | --- |");
     for (name, off, on) in rows {
         println!(
-            "| {name} | {} / {} | {} / {} | {} | {} / {} | {} / {} |",
+            "| {name} | {} / {} ({}) | {} / {} | {} | {} / {} | {} / {} |",
             off.unsafe_episodes,
             on.unsafe_episodes,
+            on.unsafe_tripped,
             off.ticks_beyond,
             on.ticks_beyond,
             on.tripped,
@@ -261,23 +268,41 @@ fn print(rows: &[(String, Totals, Totals)]) {
 
 /// The setting reported (chosen by `tune` on seeds 101–110).
 const CHOSEN: Setting = Setting {
-    relative_margin: 0.05,
-    absolute_margin: 0.0,
+    relative_margin: 0.5,
+    absolute_margin: 0.5,
     envelope_ticks: 2,
 };
 
 #[test]
 fn tune() {
-    for relative_margin in [0.02, 0.05, 0.1] {
-        for envelope_ticks in [2, 3] {
-            let setting = Setting {
-                relative_margin,
-                absolute_margin: 0.0,
-                envelope_ticks,
-            };
-            println!("\n{setting:?}, seeds 101–110");
-            print(&table(101..=110, setting));
+    // The first grid (two hysteresis counts were not compared there: with the survey cost
+    // a violation, once begun, lasts) then around its best.
+    let grid = [
+        (0.05, 0.0),
+        (0.05, 0.5),
+        (0.2, 0.0),
+        (0.2, 0.5),
+        (0.5, 0.0),
+        (0.5, 0.5),
+    ]
+    .map(|(r, a)| (r, a, 2))
+    .into_iter()
+    .chain([(0.5, 0.5, 1), (0.5, 0.5, 3), (0.3, 0.5, 2), (0.5, 1.0, 2)]);
+    for (relative_margin, absolute_margin, envelope_ticks) in grid {
+        let setting = Setting {
+            relative_margin,
+            absolute_margin,
+            envelope_ticks,
+        };
+        if std::env::var("GUARD_TUNE_ALL").is_err()
+            && envelope_ticks == 2
+            && relative_margin != 0.3
+            && absolute_margin != 1.0
+        {
+            continue;
         }
+        println!("\n{setting:?}, seeds 101–110");
+        print(&table(101..=110, setting));
     }
 }
 

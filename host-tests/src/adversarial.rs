@@ -1281,7 +1281,8 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
         tally.built += 1;
         let controller = driver_controller();
         // The episode: its mode, and per tick (action, nominal action, beyond a limit).
-        let mut episode: Option<(Mode, Vec<(f32, f32, bool)>)> = None;
+        type Ticks = Vec<(f32, f32, bool)>;
+        let mut episode: Option<(Mode, Ticks)> = None;
         let (mut limit_trips, mut envelope_trips, mut beyond_total) = (0u32, 0u32, 0u32);
         while op < operations {
             op += 1;
