@@ -59,7 +59,7 @@
 
 use super::Mode;
 use crate::error::{Error, require};
-use crate::vector::Vector;
+use crate::vector::{Vector, unrolled};
 
 /// Where a [`Limit`] reads its value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -371,19 +371,31 @@ impl<const L: usize, const T: usize> Guard<L, T> {
     }
 
     /// The index of the first limit `state`/`signal` violate.
+    ///
+    /// Up to 32 limits, every limit is checked without a branch on its outcome, into a bit
+    /// mask, in straight-line code (a few instructions fewer per tick than the loop with an
+    /// early exit on the Cortex-M4F).
     fn violated<const S: usize>(&self, state: &Vector<S>, signal: &[f32]) -> Option<u16> {
-        for (i, limit) in self.config.limits.iter().enumerate() {
+        let outside = |limit: &Limit| {
             let value = match limit.source {
                 Source::State(k) => state.get(k as usize),
                 Source::Signal(k) => signal.get(k as usize),
             };
-            // `!(a <= v && v <= b)` is also true for NaN (and a missing value).
-            let inside = value.is_some_and(|&v| limit.low <= v && v <= limit.high);
-            if !inside {
-                return Some(i as u16);
-            }
+            // A missing value is NaN, and `!(low <= v && v <= high)` holds for NaN.
+            let v = value.copied().unwrap_or(f32::NAN);
+            !((limit.low <= v) & (v <= limit.high))
+        };
+        if L <= 32 {
+            let mut mask = 0u32;
+            unrolled::<L>(|i| mask |= u32::from(outside(&self.config.limits[i])) << i);
+            (mask != 0).then(|| mask.trailing_zeros() as u16)
+        } else {
+            self.config
+                .limits
+                .iter()
+                .position(outside)
+                .map(|i| i as u16)
         }
-        None
     }
 }
 
