@@ -160,7 +160,8 @@ struct Episode<const P: usize> {
 /// 2–4 of the [module docs](self)), scored by a cost shaper; no optimizer.
 ///
 /// The [`Adapter`] runs its episodes through one of these. Use it on its own to run a θ
-/// computed elsewhere (a host simulation, a checkpoint) or to score a θ again.
+/// computed elsewhere (a host simulation, a checkpoint) or to score a θ again. `G` is the
+/// runtime guard ([`Unguarded`] unless [`EpisodeRunner::with_guard`] added one).
 ///
 /// ```
 /// use ctrl_adapt::controller::{
@@ -395,7 +396,8 @@ where
 /// The episodic learning loop with its safety envelope (see the [module docs](self)).
 ///
 /// `O` optimizes θ ∈ R^P; `C` maps a state in R^S to an action in R^A; `Sh` (a cost
-/// [`Shaper`]) scores episodes.
+/// [`Shaper`]) scores episodes; `G` is the runtime guard, [`Unguarded`] (no bytes, no
+/// instructions) unless [`Adapter::with_guard`] added a [`Guard`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
