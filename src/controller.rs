@@ -13,12 +13,14 @@
 
 pub mod adapter;
 pub mod builder;
+pub mod guard;
 pub mod nominal;
 pub mod pd;
 pub mod policy;
 
 pub use adapter::{Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode};
 pub use builder::{AdapterBuilder, CorrectedAdapter};
+pub use guard::{Guard, GuardConfig, Limit, Source, Trip, TripReason, Unguarded};
 pub use nominal::{Corrected, Nominal};
 pub use pd::{Derivative, Pd};
 pub use policy::{

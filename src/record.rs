@@ -79,6 +79,12 @@ pub struct Shape {
 }
 
 impl Shape {
+    /// No word: the shape of a type that adds nothing to a record (no guard).
+    pub const EMPTY: Self = Self {
+        words: [0; SHAPE_CAPACITY],
+        len: 0,
+    };
+
     /// A type tagged `tag` with the const-generic `sizes`.
     pub const fn new(tag: [u8; 4], sizes: &[usize]) -> Self {
         let mut shape = Self {
@@ -307,6 +313,7 @@ pub(crate) mod array {
 
 mod shapes {
     use super::{Error, Persistent, Shape};
+    use crate::controller::guard::{Guard, Supervisor, Unguarded};
     use crate::controller::{
         Adapter, Corrected, CorrectedPd, EpisodeRunner, IdentityFeatures, LinearPolicy, Pd,
         PeriodicPd, PeriodicRbf, StateFeatures,
@@ -318,6 +325,24 @@ mod shapes {
     };
     use crate::{Bounds, Vector};
 
+    /// No guard adds nothing to a record: its shape is empty and it encodes to no byte, so
+    /// the records of unguarded adapters are those of the versions before the guard.
+    impl Persistent for Unguarded {
+        const SHAPE: Shape = Shape::EMPTY;
+
+        fn validate(&self) -> Result<(), Error> {
+            Ok(())
+        }
+    }
+    impl<const L: usize, const T: usize> Persistent for Guard<L, T> {
+        const SHAPE: Shape = Shape::new(*b"GRD_", &[L, T]);
+
+        /// The configuration's ranges, an envelope without NaN, a running trip's reason a
+        /// limit that exists (the state coordinates are checked by the runner holding it).
+        fn validate(&self) -> Result<(), Error> {
+            <Self as Supervisor<0>>::validate_decoded(self)
+        }
+    }
     impl<const N: usize> Persistent for Vector<N> {
         const SHAPE: Shape = Shape::new(*b"VECT", &[N]);
 
@@ -498,28 +523,35 @@ mod shapes {
             self.check_decoded()
         }
     }
-    impl<C: Persistent, Sh: Persistent, const P: usize, const S: usize, const A: usize> Persistent
-        for EpisodeRunner<C, Sh, P, S, A>
+    impl<C, Sh, const P: usize, const S: usize, const A: usize, G> Persistent
+        for EpisodeRunner<C, Sh, P, S, A, G>
+    where
+        C: Persistent,
+        Sh: Persistent,
+        G: Persistent + Supervisor<S>,
     {
         const SHAPE: Shape = Shape::new(*b"RUNR", &[P, S, A])
             .nest(C::SHAPE)
-            .nest(Sh::SHAPE);
+            .nest(Sh::SHAPE)
+            .nest(G::SHAPE);
 
         fn validate(&self) -> Result<(), Error> {
             self.check_decoded()
         }
     }
-    impl<O, C, Sh, const P: usize, const S: usize, const A: usize> Persistent
-        for Adapter<O, C, Sh, P, S, A>
+    impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G> Persistent
+        for Adapter<O, C, Sh, P, S, A, G>
     where
         O: Persistent + Optimizer<P>,
         C: Persistent,
         Sh: Persistent,
+        G: Persistent + Supervisor<S>,
     {
         const SHAPE: Shape = Shape::new(*b"ADPT", &[P, S, A])
             .nest(O::SHAPE)
             .nest(C::SHAPE)
-            .nest(Sh::SHAPE);
+            .nest(Sh::SHAPE)
+            .nest(G::SHAPE);
 
         fn validate(&self) -> Result<(), Error> {
             self.check_decoded()

@@ -814,8 +814,17 @@ where
 
 /// A shaper whose cost is the last observation (so the driver chooses each episode's cost,
 /// NaN and ∞ included); its cost before any observation is 0.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LastObservation(f32);
+
+impl ctrl_adapt::record::Persistent for LastObservation {
+    const SHAPE: ctrl_adapt::record::Shape = ctrl_adapt::record::Shape::new(*b"LAST", &[]);
+
+    /// Any observation is one (NaN included: the shaper reports it as the cost).
+    fn validate(&self) -> Result<(), Error> {
+        Ok(())
+    }
+}
 
 impl Shaper for LastObservation {
     type Observation = f32;
@@ -1130,6 +1139,313 @@ where
                     op,
                     "the adapter's episode and the driver's differ".into(),
                 ));
+            }
+        }
+    }
+    Ok(tally)
+}
+
+/// What [`drive_guarded_adapter`] counted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GuardTally {
+    /// Operations run.
+    pub operations: u64,
+    /// Guarded adapters built (guard configurations refused are not counted).
+    pub built: u64,
+    /// Guard configurations refused.
+    pub refused_guards: u64,
+    /// Episodes ended, and of them tripped by a limit and by the envelope.
+    pub episodes: u64,
+    /// See [`GuardTally::episodes`].
+    pub limit_trips: u64,
+    /// See [`GuardTally::episodes`].
+    pub envelope_trips: u64,
+    /// Records saved and loaded back mid-run.
+    pub round_trips: u64,
+}
+
+/// The guarded adapter in the driver: two limits, an 8-tick envelope.
+type GuardedDriverAdapter<O> =
+    Adapter<O, DriverController, LastObservation, 2, 2, 1, ctrl_adapt::controller::Guard<2, 8>>;
+
+/// Drives adapters with a runtime guard (random limits on a state coordinate and on a
+/// signal, random hysteresis and margins, NaN and infinities included) around a coordinate
+/// search: episodes in every mode, ticks with adversarial states, signals (short ones
+/// included) and running costs, aborts, and save/load of the record mid-episode. Checks,
+/// besides panic freedom:
+///
+/// * every action finite, within the PD's limit and the correction envelope of the nominal;
+/// * a trip only in a learning or deployed episode, at a tick it ran; from that tick on,
+///   every action the nominal action (or the safe action, zero, when that is not finite);
+/// * a limit trip exactly at the first tick ending `limit_ticks` consecutive ticks beyond
+///   some limit, unless the envelope tripped earlier; `ticks_beyond_limits` the ticks
+///   beyond a limit;
+/// * a tripped learning episode told [`tripped_cost`], above the failure cost; the guard's
+///   counters the sums of the reports; the record loads back equal.
+///
+/// [`tripped_cost`]: ctrl_adapt::controller::guard::tripped_cost
+pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, Violation> {
+    use ctrl_adapt::controller::guard::{
+        Guard, GuardConfig, Limit, Source, TripReason, tripped_cost,
+    };
+    use ctrl_adapt::optimizer::{CoordinateConfig, CoordinateSearch};
+
+    let mut rng = DriverRng::seed_from_u64(seed);
+    let mut tally = GuardTally::default();
+    let mut op = 0u64;
+    let fail = |op: u64, message: String| Violation {
+        seed,
+        operation: op,
+        message,
+    };
+    let bounds = Bounds::<2>::uniform(-1.0, 1.0).expect("valid box");
+    'build: while op < operations {
+        op += 1;
+        tally.operations += 1;
+        let limit = |rng: &mut DriverRng, k: u16| {
+            let a = field(rng, -1.0);
+            let b = field(rng, 1.0);
+            Limit {
+                source: if k == 0 {
+                    Source::State((rng.next_u32() % 3) as u16)
+                } else {
+                    Source::Signal((rng.next_u32() % 2) as u16)
+                },
+                low: a.min(b),
+                high: if rng.next_u32().is_multiple_of(10) {
+                    a
+                } else {
+                    a.max(b)
+                },
+            }
+        };
+        let config = GuardConfig {
+            limits: [limit(&mut rng, 0), limit(&mut rng, 1)],
+            limit_ticks: count(&mut rng, 2).min(5),
+            envelope_ticks: count(&mut rng, 2).min(5),
+            relative_margin: field(&mut rng, 0.1),
+            absolute_margin: field(&mut rng, 0.05),
+            tripped_cost_span: field(&mut rng, 10.0),
+        };
+        let failure_cost = 50.0;
+        let adapter_config = AdapterConfig {
+            dt: 0.05,
+            failure_cost,
+            max_faulty_ticks: 3,
+            learning_episodes: 40,
+        };
+        let search = CoordinateSearch::try_new(
+            bounds,
+            Vector::zeros(),
+            CoordinateConfig {
+                max_evaluations: 60,
+                ..CoordinateConfig::DEFAULT
+            },
+        )
+        .expect("valid search");
+        let built = guarded(seed, op, || {
+            let adapter = Adapter::try_new(
+                search,
+                driver_controller(),
+                LastObservation(0.0),
+                adapter_config,
+                Vector::zeros(),
+            )
+            .map_err(AdapterError::from)?;
+            let guard = Guard::<2, 8>::try_new(config)?;
+            adapter.with_guard(guard)
+        });
+        let fits = config.validate().is_ok()
+            && !matches!(config.limits[0].source, Source::State(k) if k >= 2)
+            && (failure_cost + config.tripped_cost_span).is_finite()
+            && failure_cost + config.tripped_cost_span > failure_cost;
+        let mut adapter: GuardedDriverAdapter<_> = match built {
+            Ok(a) if fits => a,
+            Err(_) if !fits => {
+                tally.refused_guards += 1;
+                continue;
+            }
+            Ok(_) => {
+                return Err(fail(
+                    op,
+                    format!("an invalid guard was accepted: {config:?}"),
+                ));
+            }
+            Err(e) => {
+                return Err(fail(
+                    op,
+                    format!("a valid guard was refused ({e:?}): {config:?}"),
+                ));
+            }
+        };
+        tally.built += 1;
+        let controller = driver_controller();
+        // The episode: its mode, and per tick (action, nominal action, beyond a limit).
+        type Ticks = Vec<(f32, f32, bool)>;
+        let mut episode: Option<(Mode, Ticks)> = None;
+        let (mut limit_trips, mut envelope_trips, mut beyond_total) = (0u32, 0u32, 0u32);
+        while op < operations {
+            op += 1;
+            tally.operations += 1;
+            let choice = rng.next_u32() % 100;
+            if choice == 0 {
+                continue 'build;
+            } else if choice < 6 {
+                if episode.is_none() {
+                    let mode =
+                        [Mode::Learn, Mode::Deploy, Mode::Nominal][(rng.next_u32() % 3) as usize];
+                    adapter
+                        .set_mode(mode)
+                        .map_err(|e| fail(op, format!("{e:?}")))?;
+                    guarded(seed, op, || adapter.begin_episode(&mut rng))
+                        .map_err(|e| fail(op, format!("begin refused: {e:?}")))?;
+                    episode = Some((adapter.mode(), Vec::new()));
+                }
+            } else if choice < 10 {
+                let Some((mode, ticks)) = episode.take() else {
+                    continue;
+                };
+                let abort = rng.next_u32().is_multiple_of(4);
+                let report = guarded(seed, op, || {
+                    if abort {
+                        adapter.abort_episode()
+                    } else {
+                        adapter.end_episode()
+                    }
+                })
+                .map_err(|e| fail(op, format!("end refused: {e:?}")))?;
+                tally.episodes += 1;
+                let beyond = ticks.iter().filter(|t| t.2).count() as u32;
+                beyond_total += beyond;
+                if report.ticks_beyond_limits != beyond || report.ticks as usize != ticks.len() {
+                    return Err(fail(
+                        op,
+                        format!("report {report:?}, {beyond} ticks beyond"),
+                    ));
+                }
+                // The first tick ending `limit_ticks` consecutive ticks beyond a limit.
+                let mut run = 0;
+                let due = ticks.iter().position(|t| {
+                    run = if t.2 { run + 1 } else { 0 };
+                    run >= config.limit_ticks
+                });
+                match report.trip {
+                    Some(trip) => {
+                        if mode == Mode::Nominal || trip.tick as usize >= ticks.len() {
+                            return Err(fail(op, format!("trip {trip:?} in {mode:?}")));
+                        }
+                        for (t, &(u, nominal, _)) in
+                            ticks.iter().enumerate().skip(trip.tick as usize)
+                        {
+                            let expected = if nominal.is_finite() { nominal } else { 0.0 };
+                            if u != expected {
+                                return Err(fail(
+                                    op,
+                                    format!("tick {t} after the trip ran {u}, nominal {nominal}"),
+                                ));
+                            }
+                        }
+                        match trip.reason {
+                            TripReason::Limit(_) => {
+                                limit_trips += 1;
+                                tally.limit_trips += 1;
+                                if due != Some(trip.tick as usize) {
+                                    return Err(fail(
+                                        op,
+                                        format!("limit trip {trip:?}, due {due:?}"),
+                                    ));
+                                }
+                            }
+                            TripReason::Envelope => {
+                                envelope_trips += 1;
+                                tally.envelope_trips += 1;
+                                if due.is_some_and(|d| d < trip.tick as usize) {
+                                    return Err(fail(
+                                        op,
+                                        format!(
+                                            "envelope trip {trip:?} after a due limit trip {due:?}"
+                                        ),
+                                    ));
+                                }
+                            }
+                        }
+                        if mode == Mode::Learn {
+                            let told = tripped_cost(
+                                failure_cost,
+                                config.tripped_cost_span,
+                                trip.tick,
+                                report.ticks,
+                            );
+                            if report.told != Some(told) || told <= failure_cost {
+                                return Err(fail(
+                                    op,
+                                    format!("told {:?}, expected {told}", report.told),
+                                ));
+                            }
+                        }
+                    }
+                    None => {
+                        if mode != Mode::Nominal && due.is_some() {
+                            return Err(fail(
+                                op,
+                                format!("no trip, a limit trip was due at {due:?}"),
+                            ));
+                        }
+                    }
+                }
+                let c = adapter.guard().counters();
+                if (c.limit_trips, c.envelope_trips, c.ticks_beyond_limits)
+                    != (limit_trips, envelope_trips, beyond_total)
+                {
+                    return Err(fail(op, format!("counters {c:?}")));
+                }
+            } else if choice < 12 {
+                let mut buf = vec![0u8; 4096];
+                let bytes = ctrl_adapt::record::save(&adapter, &mut buf)
+                    .map_err(|e| fail(op, format!("save: {e:?}")))?;
+                let back: GuardedDriverAdapter<_> = ctrl_adapt::record::load(bytes)
+                    .map_err(|e| fail(op, format!("load: {e:?}")))?;
+                if !same(&back, &adapter) {
+                    return Err(fail(op, "the record loaded back differs".into()));
+                }
+                tally.round_trips += 1;
+            } else {
+                let mut value = || {
+                    if rng.next_u32().is_multiple_of(5) {
+                        adversarial_f32(&mut rng)
+                    } else {
+                        (unit(&mut rng) - 0.5) * 4.0
+                    }
+                };
+                let state = Vector::<2>::from_fn(|_, _| value());
+                let observation = value();
+                let signal = [value(), value()];
+                let len = (rng.next_u32() % 3) as usize;
+                let signal = &signal[..len];
+                let action = guarded(seed, op, || {
+                    adapter.control_with_signal(&state, &observation, signal)
+                });
+                let u = action[0];
+                let nominal = controller.clone().nominal(&state, 0.0)[0];
+                if !u.is_finite() || u.abs() > ACTION_LIMIT {
+                    return Err(fail(op, format!("action {u:e} for state {state:?}")));
+                }
+                if nominal.is_finite() && (u - nominal).abs() > ENVELOPE * (1.0 + 1e-6) {
+                    return Err(fail(
+                        op,
+                        format!("action {u:e} far from the nominal {nominal:e}"),
+                    ));
+                }
+                if let Some((_, ticks)) = episode.as_mut() {
+                    let beyond = config.limits.iter().any(|l| {
+                        let v = match l.source {
+                            Source::State(k) => state.get(k as usize),
+                            Source::Signal(k) => signal.get(k as usize),
+                        };
+                        !v.is_some_and(|&v| l.low <= v && v <= l.high)
+                    });
+                    ticks.push((u, nominal, beyond));
+                }
             }
         }
     }

@@ -63,7 +63,9 @@ pub const TRANSIENT_HOPS: usize = 3;
 pub type LegController = PeriodicPd<K, P>;
 
 /// The adapter of the hopping experiments over optimizer `O`.
-pub type HopperAdapter<O> = Adapter<O, LegController, ApexHeightCost, P, 4, 2>;
+/// (`G` a runtime guard: none by default.)
+pub type HopperAdapter<O, G = ctrl_adapt::controller::Unguarded> =
+    Adapter<O, LegController, ApexHeightCost, P, 4, 2, G>;
 
 /// The kernels over the nominal period, with the learned period kept within ±0.1 s.
 pub fn kernels() -> PeriodicRbf<K> {
@@ -399,8 +401,12 @@ pub fn policy_state(hopper: &Hopper) -> Vector<4> {
 
 /// Runs one episode of `adapter` on `hopper` (reset first). A collapse aborts the episode
 /// (the adapter tells its failure cost when learning). Records every 10th tick if `record`.
-pub fn run_episode<O: Optimizer<P>, G: RngCore>(
-    adapter: &mut HopperAdapter<O>,
+pub fn run_episode<
+    O: Optimizer<P>,
+    G: RngCore,
+    Gd: ctrl_adapt::controller::guard::Supervisor<4>,
+>(
+    adapter: &mut HopperAdapter<O, Gd>,
     hopper: &mut Hopper,
     rng: &mut G,
     record: bool,

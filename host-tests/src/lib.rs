@@ -115,7 +115,13 @@ macro_rules! episodic {
     };
 }
 
-episodic!(Adapter<O, C, Sh, P, S, A>, O: Optimizer<P>, C: Controller<P, S, A>, Sh: Shaper);
+episodic!(
+    Adapter<O, C, Sh, P, S, A, G>,
+    O: Optimizer<P>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+    G: ctrl_adapt::controller::guard::Supervisor<S>
+);
 episodic!(EpisodeRunner<C, Sh, P, S, A>, C: Controller<P, S, A>, Sh: Shaper);
 
 /// Uniform random search, the baseline of the classification-based optimizers: the best

@@ -683,3 +683,14 @@ fn forged_adapter() {
         );
     }
 }
+
+/// The adapter with the runtime guard on (see `drive_guarded_adapter`): every check of the
+/// guard after every episode.
+#[test]
+fn the_guarded_adapter_survives_the_adversarial_driver() {
+    let tally = host_tests::adversarial::drive_guarded_adapter(21, OPERATIONS)
+        .unwrap_or_else(|v| panic!("guarded adapter: {v}"));
+    println!("guarded adapter: {tally:?}");
+    assert!(tally.built > 0 && tally.refused_guards > 0 && tally.round_trips > 0);
+    assert!(tally.limit_trips > 0 && tally.envelope_trips > 0);
+}

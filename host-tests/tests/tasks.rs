@@ -100,3 +100,63 @@ fn zero_correction_leg_hops_like_the_tuned_nominal() {
     assert!(e.apex_spread() < 0.01);
     assert!(!e.report.failed);
 }
+
+/// Checks the runtime guard wired to the AUV (experiments/findings/guard.md): after two bare
+/// episodes teach it the envelope, W = 0 (the bare PD) runs untripped, while a correction
+/// that holds the vehicle back is handed back to the PD mid-episode.
+#[test]
+fn auv_guard_hands_a_bad_correction_back_to_the_pd() {
+    use ctrl_adapt::controller::guard::{Guard, GuardConfig, Limit, Source};
+    let mut r = rng();
+    let guard = Guard::<1, 240>::try_new(GuardConfig {
+        limits: [Limit {
+            source: Source::Signal(0),
+            low: 0.0,
+            high: 8.0,
+        }],
+        relative_margin: 0.5,
+        absolute_margin: 0.5,
+        tripped_cost_span: 5.0,
+        ..GuardConfig::DEFAULT
+    })
+    .unwrap();
+    let search = auv_task::coordinate_search(Vector::zeros(), 10).unwrap();
+    let mut adapter = auv_task::adapter(search, 10, Vector::zeros())
+        .unwrap()
+        .with_guard(guard)
+        .unwrap();
+    let mut auv = auv_task::plant(AuvConfig::REAL, 3);
+    let mut episode = |adapter: &mut _, theta: Option<Vector<18>>| {
+        let adapter: &mut ctrl_adapt::controller::Adapter<_, _, _, 18, 6, 3, _> = adapter;
+        auv.reset();
+        match theta {
+            Some(theta) => adapter.begin_fixed_episode(theta).unwrap(),
+            None => {
+                adapter.begin_episode(&mut r).unwrap();
+            }
+        }
+        for _ in 0..auv.steps_per_episode() {
+            let error = auv_task::true_error(&auv);
+            let u =
+                adapter.control_with_signal(&auv_task::policy_state(&auv), &error, &[error.norm()]);
+            auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
+        }
+        adapter.end_episode().unwrap()
+    };
+    adapter.set_mode(Mode::Nominal).unwrap();
+    for _ in 0..2 {
+        assert_eq!(episode(&mut adapter, None).trip, None);
+    }
+    adapter.set_mode(Mode::Learn).unwrap();
+    assert_eq!(episode(&mut adapter, Some(Vector::zeros())).trip, None);
+    // −1 on W's error diagonal: the correction cancels the saturated PD far from the target,
+    // so the vehicle stays near its start while the bare PD closes in (an envelope trip).
+    let away = Vector::<18>::from_fn(|i, _| if i % 7 == 0 { -1.0 } else { 0.0 });
+    let report = episode(&mut adapter, Some(away));
+    let trip = report.trip.expect("the guard trips");
+    println!("away from the target: {trip:?}, cost {}", report.cost);
+    assert!(trip.tick > 0 && trip.tick < report.ticks);
+    // The learning episode (W = 0 is the search's first candidate) told its own cost.
+    let learned = episode(&mut adapter, None);
+    assert!(learned.told.is_some() && learned.told < Some(10.0));
+}

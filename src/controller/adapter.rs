@@ -20,7 +20,12 @@
 //!    non-finite cost from the shaper, or one ended by [`Adapter::abort_episode`] (a watchdog,
 //!    the operator) is told `failure_cost` instead: a finite penalty that the configuration
 //!    documents. No NaN ever reaches an optimizer.
-//! 5. **Rollback**: after `learning_episodes` learning episodes, when the optimizer stops,
+//! 5. **Runtime guard** (optional, [`EpisodeRunner::with_guard`], [`Adapter::with_guard`]):
+//!    limits on the state or a safety signal, and the running cost against an envelope
+//!    learned from the bare episodes; on a trip the rest of the episode runs the nominal
+//!    controller and a learning episode is told the
+//!    [tripped cost](super::guard::tripped_cost) (see [`guard`](super::guard)).
+//! 6. **Rollback**: after `learning_episodes` learning episodes, when the optimizer stops,
 //!    or on demand ([`Adapter::set_mode`]), the adapter runs the best θ found
 //!    ([`Mode::Deploy`]) and explores no more. [`Mode::Nominal`] runs the bare controller.
 
@@ -29,6 +34,7 @@ use core::fmt;
 use rand_core::{RngCore, SeedableRng};
 
 use super::Controller;
+use super::guard::{Guard, Supervisor, Trip, Unguarded};
 use crate::cost::Shaper;
 use crate::error::{Error, require};
 use crate::optimizer::Optimizer;
@@ -93,6 +99,11 @@ pub struct EpisodeReport<const P: usize> {
     pub faulty_ticks: u32,
     /// Ticks run.
     pub ticks: u32,
+    /// When and why the guard handed the episode to the nominal controller (`None` without
+    /// a guard or when it did not trip).
+    pub trip: Option<Trip>,
+    /// Ticks with some guard limit violated (0 without a guard).
+    pub ticks_beyond_limits: u32,
 }
 
 /// Why an [`Adapter`] or [`EpisodeRunner`] call was refused: the call order, or the
@@ -149,7 +160,8 @@ struct Episode<const P: usize> {
 /// 2–4 of the [module docs](self)), scored by a cost shaper; no optimizer.
 ///
 /// The [`Adapter`] runs its episodes through one of these. Use it on its own to run a θ
-/// computed elsewhere (a host simulation, a checkpoint) or to score a θ again.
+/// computed elsewhere (a host simulation, a checkpoint) or to score a θ again. `G` is the
+/// runtime guard ([`Unguarded`] unless [`EpisodeRunner::with_guard`] added one).
 ///
 /// ```
 /// use ctrl_adapt::controller::{
@@ -173,11 +185,12 @@ struct Episode<const P: usize> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct EpisodeRunner<C, Sh, const P: usize, const S: usize, const A: usize> {
+pub struct EpisodeRunner<C, Sh, const P: usize, const S: usize, const A: usize, G = Unguarded> {
     controller: C,
     shaper: Sh,
     config: AdapterConfig,
     episode: Option<Episode<P>>,
+    guard: G,
 }
 
 impl<C, Sh, const P: usize, const S: usize, const A: usize> EpisodeRunner<C, Sh, P, S, A>
@@ -185,7 +198,8 @@ where
     C: Controller<P, S, A>,
     Sh: Shaper,
 {
-    /// A runner between episodes (`config.learning_episodes` plays no part here).
+    /// A runner between episodes (`config.learning_episodes` plays no part here), without a
+    /// guard ([`EpisodeRunner::with_guard`] adds one).
     pub fn try_new(controller: C, shaper: Sh, config: AdapterConfig) -> Result<Self, Error> {
         config.validate()?;
         Ok(Self {
@@ -193,7 +207,54 @@ where
             shaper,
             config,
             episode: None,
+            guard: Unguarded,
         })
+    }
+
+    /// This runner with the runtime `guard` (see [`guard`](super::guard)); between episodes.
+    /// Errors if a limit reads a state coordinate beyond `S`, or if the failure cost plus
+    /// the guard's tripped-cost span is not a finite number above the failure cost.
+    pub fn with_guard<const L: usize, const T: usize>(
+        self,
+        guard: Guard<L, T>,
+    ) -> Result<EpisodeRunner<C, Sh, P, S, A, Guard<L, T>>, AdapterError> {
+        if self.episode.is_some() {
+            return Err(AdapterError::EpisodeInProgress);
+        }
+        guard.config().validate()?;
+        Supervisor::<S>::fit(&guard)?;
+        let top = self.config.failure_cost + guard.config().tripped_cost_span;
+        require(
+            top.is_finite() && top > self.config.failure_cost,
+            "tripped_cost_span",
+        )?;
+        Ok(EpisodeRunner {
+            controller: self.controller,
+            shaper: self.shaper,
+            config: self.config,
+            episode: None,
+            guard,
+        })
+    }
+}
+
+impl<C, Sh, const P: usize, const S: usize, const A: usize, G> EpisodeRunner<C, Sh, P, S, A, G>
+where
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+    G: Supervisor<S>,
+{
+    /// The guard ([`Unguarded`] without one): its counters and envelope.
+    pub fn guard(&self) -> &G {
+        &self.guard
+    }
+
+    /// The guard, mutable (to clear its envelope); between episodes.
+    pub fn guard_mut(&mut self) -> Result<&mut G, AdapterError> {
+        if self.episode.is_some() {
+            return Err(AdapterError::EpisodeInProgress);
+        }
+        Ok(&mut self.guard)
     }
 
     /// Starts an episode that runs `theta` (or, in [`Mode::Nominal`], the bare controller).
@@ -204,6 +265,7 @@ where
         }
         self.shaper.reset();
         self.controller.reset();
+        self.guard.begin(mode);
         self.episode = Some(Episode {
             theta,
             mode,
@@ -219,15 +281,34 @@ where
     /// safe action) and counts a faulty tick. Outside an episode the nominal controller runs
     /// and nothing is recorded.
     pub fn control(&mut self, state: &Vector<S>, observation: &Sh::Observation) -> Vector<A> {
+        self.control_with_signal(state, observation, &[])
+    }
+
+    /// [`EpisodeRunner::control`] with the safety `signal` the guard's
+    /// [`Source::Signal`](super::guard::Source::Signal) limits read (ignored without a
+    /// guard).
+    pub fn control_with_signal(
+        &mut self,
+        state: &Vector<S>,
+        observation: &Sh::Observation,
+        signal: &[f32],
+    ) -> Vector<A> {
         let Some(episode) = self.episode.as_mut() else {
             let nominal = self.controller.nominal(state, 0.0);
             return finite_or(nominal, || self.controller.safe_action());
         };
         let time = episode.ticks as f32 * self.config.dt;
         let state_ok = state.iter().all(|v| v.is_finite());
+        // The shaper observes first, so that the guard compares the running cost with this
+        // tick's observation in it and can hand this very tick over.
+        self.shaper.observe(observation, self.config.dt);
+        let shaper = &self.shaper;
+        let handed_over = self
+            .guard
+            .check(episode.mode, episode.ticks, state, signal, || shaper.cost());
         // One call of the controller per tick (it may keep state), except for the fallback
         // after a non-finite corrected action (see `Controller`).
-        let correcting = state_ok && episode.mode != Mode::Nominal;
+        let correcting = state_ok && episode.mode != Mode::Nominal && !handed_over;
         let action = if correcting {
             self.controller.corrected(&episode.theta, state, time)
         } else {
@@ -246,7 +327,6 @@ where
             finite_or(nominal, || self.controller.safe_action())
         };
         episode.ticks = episode.ticks.saturating_add(1);
-        self.shaper.observe(observation, self.config.dt);
         action
     }
 
@@ -265,6 +345,7 @@ where
         let cost = self.shaper.cost();
         let failed =
             aborted || !cost.is_finite() || episode.faulty_ticks > self.config.max_faulty_ticks;
+        let (trip, ticks_beyond_limits) = self.guard.finish();
         self.episode = None;
         Ok(EpisodeReport {
             theta: episode.theta,
@@ -274,6 +355,8 @@ where
             failed,
             faulty_ticks: episode.faulty_ticks,
             ticks: episode.ticks,
+            trip,
+            ticks_beyond_limits,
         })
     }
 
@@ -313,13 +396,14 @@ where
 /// The episodic learning loop with its safety envelope (see the [module docs](self)).
 ///
 /// `O` optimizes θ ∈ R^P; `C` maps a state in R^S to an action in R^A; `Sh` (a cost
-/// [`Shaper`]) scores episodes.
+/// [`Shaper`]) scores episodes; `G` is the runtime guard, [`Unguarded`] (no bytes, no
+/// instructions) unless [`Adapter::with_guard`] added a [`Guard`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct Adapter<O, C, Sh, const P: usize, const S: usize, const A: usize> {
+pub struct Adapter<O, C, Sh, const P: usize, const S: usize, const A: usize, G = Unguarded> {
     optimizer: O,
-    runner: EpisodeRunner<C, Sh, P, S, A>,
+    runner: EpisodeRunner<C, Sh, P, S, A, G>,
     mode: Mode,
     initial: Vector<P>,
     learning_episodes: u32,
@@ -352,6 +436,59 @@ where
         })
     }
 
+    /// This adapter with the runtime `guard` (see [`guard`](super::guard) and
+    /// [`EpisodeRunner::with_guard`]); between episodes.
+    ///
+    /// ```
+    /// use ctrl_adapt::controller::guard::{Guard, GuardConfig};
+    /// use ctrl_adapt::controller::{Adapter, AdapterConfig, CorrectedPd, LinearPolicy, Mode, Pd, StateFeatures};
+    /// use ctrl_adapt::cost::QuadraticCost;
+    /// use ctrl_adapt::{Bounds, CoordinateConfig, CoordinateSearch, Vector};
+    /// # use rand_core::SeedableRng;
+    /// # let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
+    ///
+    /// let pd = Pd::<1>::try_new(Vector::repeat(2.0), Vector::repeat(0.5))?;
+    /// let policy = LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(1.0))?;
+    /// let controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+    /// let search = CoordinateSearch::try_new(Bounds::uniform(-1.0, 1.0)?, Vector::zeros(), CoordinateConfig::DEFAULT)?;
+    /// let config = AdapterConfig { dt: 0.1, failure_cost: 10.0, max_faulty_ticks: 0, learning_episodes: 20 };
+    /// let shaper = QuadraticCost::try_new(Vector::<1>::repeat(1.0))?;
+    /// // No limit; an envelope of 50 ticks with a 20 % margin.
+    /// let guard = Guard::<0, 50>::try_new(GuardConfig { relative_margin: 0.2, ..GuardConfig::DEFAULT })?;
+    /// let mut adapter = Adapter::try_new(search, controller, shaper, config, Vector::zeros())?
+    ///     .with_guard(guard)?;
+    /// // The envelope learns from bare episodes first.
+    /// adapter.set_mode(Mode::Nominal)?;
+    /// adapter.begin_episode(&mut rng)?;
+    /// for _ in 0..50 {
+    ///     adapter.control(&Vector::from([0.1, 0.0]), &Vector::repeat(0.1));
+    /// }
+    /// adapter.end_episode()?;
+    /// assert_eq!(adapter.guard().counters().bare_episodes, 1);
+    /// adapter.set_mode(Mode::Learn)?;
+    /// # Ok::<(), Box<dyn core::error::Error>>(())
+    /// ```
+    pub fn with_guard<const L: usize, const T: usize>(
+        self,
+        guard: Guard<L, T>,
+    ) -> Result<Adapter<O, C, Sh, P, S, A, Guard<L, T>>, AdapterError> {
+        Ok(Adapter {
+            optimizer: self.optimizer,
+            runner: self.runner.with_guard(guard)?,
+            mode: self.mode,
+            initial: self.initial,
+            learning_episodes: self.learning_episodes,
+        })
+    }
+}
+
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G> Adapter<O, C, Sh, P, S, A, G>
+where
+    O: Optimizer<P>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+    G: Supervisor<S>,
+{
     /// Starts an episode and returns the θ it runs. In [`Mode::Learn`] this asks the
     /// optimizer; when the learning budget is spent or the optimizer has stopped, the
     /// adapter rolls back to [`Mode::Deploy`] first. Errors if an episode is running.
@@ -418,14 +555,36 @@ where
         self.runner.control(state, observation)
     }
 
-    /// Ends the episode: scores it and, when learning, tells the optimizer (the failure cost
+    /// [`Adapter::control`] with the safety `signal` of the guard's limits (see
+    /// [`EpisodeRunner::control_with_signal`]).
+    pub fn control_with_signal(
+        &mut self,
+        state: &Vector<S>,
+        observation: &Sh::Observation,
+        signal: &[f32],
+    ) -> Vector<A> {
+        self.runner.control_with_signal(state, observation, signal)
+    }
+
+    /// The guard ([`Unguarded`] without one): its counters and envelope.
+    pub fn guard(&self) -> &G {
+        self.runner.guard()
+    }
+
+    /// The guard, mutable (to clear its envelope); between episodes.
+    pub fn guard_mut(&mut self) -> Result<&mut G, AdapterError> {
+        self.runner.guard_mut()
+    }
+
+    /// Ends the episode: scores it and, when learning, tells the optimizer (the
+    /// [tripped cost](super::guard::tripped_cost) if the guard tripped, else the failure cost
     /// if the episode failed). Errors if no episode is running.
     pub fn end_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
         self.finish(false)
     }
 
     /// Ends the episode as failed (a watchdog fired, the operator stopped the robot): a
-    /// learning episode is told the failure cost.
+    /// learning episode is told the failure cost (the tripped cost if the guard tripped).
     pub fn abort_episode(&mut self) -> Result<EpisodeReport<P>, AdapterError> {
         self.finish(true)
     }
@@ -438,10 +597,11 @@ where
             self.runner.end_episode()?
         };
         if learning {
-            let value = if report.failed {
-                self.runner.config().failure_cost
-            } else {
-                report.cost
+            let failure_cost = self.runner.config().failure_cost;
+            let value = match &report.trip {
+                Some(trip) => self.runner.guard().told(failure_cost, trip, report.ticks),
+                None if report.failed => failure_cost,
+                None => report.cost,
             };
             // Cannot fail: `value` is finite (the failure cost is validated) and the
             // episode's candidate is pending (only this adapter asks its optimizer).
@@ -509,10 +669,11 @@ where
 }
 
 #[cfg(feature = "serde")]
-impl<C, Sh, const P: usize, const S: usize, const A: usize> EpisodeRunner<C, Sh, P, S, A>
+impl<C, Sh, const P: usize, const S: usize, const A: usize, G> EpisodeRunner<C, Sh, P, S, A, G>
 where
     C: crate::record::Persistent,
     Sh: crate::record::Persistent,
+    G: Supervisor<S>,
 {
     /// The checks of a decoded runner ([`Persistent::validate`](crate::record::Persistent)):
     /// the configuration, the controller's and the shaper's own, and a running episode's θ
@@ -521,6 +682,8 @@ where
         self.config.validate()?;
         self.controller.validate()?;
         self.shaper.validate()?;
+        self.guard.fit()?;
+        self.guard.validate_decoded()?;
         match &self.episode {
             Some(e) if e.theta.iter().any(|v| !v.is_finite()) => Err(Error::NonFinite("episode")),
             _ => Ok(()),
@@ -529,11 +692,12 @@ where
 }
 
 #[cfg(feature = "serde")]
-impl<O, C, Sh, const P: usize, const S: usize, const A: usize> Adapter<O, C, Sh, P, S, A>
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G> Adapter<O, C, Sh, P, S, A, G>
 where
     O: Optimizer<P> + crate::record::Persistent,
     C: crate::record::Persistent,
     Sh: crate::record::Persistent,
+    G: Supervisor<S>,
 {
     /// The checks of a decoded adapter ([`Persistent::validate`](crate::record::Persistent)):
     /// the constructor's (the runner's and the optimizer's own checks, the initial θ inside

@@ -73,6 +73,9 @@ pub mod sections {
         cmaes_ask = 11;
         /// `Cmaes::<18, 12>::tell`.
         cmaes_tell = 12;
+        /// One control tick of the AUV adapter with the runtime guard: 6 state limits and a
+        /// 240-tick envelope (`Guard<6, 240>`), `Adapter::control`.
+        guarded_control = 13;
     }
 }
 

@@ -8,6 +8,7 @@
 #![no_main]
 
 use auv_survey::{self as auv, AuvAdapter};
+use ctrl_adapt::controller::guard::{Guard, GuardConfig, Limit, Source};
 use ctrl_adapt::controller::{Adapter, AdapterError, Mode};
 use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{CoordinateSearch, Vector};
@@ -75,11 +76,68 @@ fn measure_controller() -> Result<(), AdapterError> {
         report.ticks,
         report.cost
     );
+    measure_guarded(theta, &next)?;
     let policy = *adapter.controller().policy();
     let mut states = Xoshiro128PlusPlus::seed_from_u64(3);
     for _ in 0..TICKS {
         let x = next(&mut states);
         sections::correction::measure(|| policy.correction(&theta, &x, 0.0));
+    }
+    Ok(())
+}
+
+/// The same episode's ticks through the adapter with the runtime guard: 6 limits, one per
+/// state coordinate (wide enough that no tick trips them), and the 240-tick envelope learned
+/// from one bare episode on the same states (so every tick compares with it).
+#[inline(never)]
+fn measure_guarded(
+    theta: Vector<N>,
+    next: &impl Fn(&mut Xoshiro128PlusPlus) -> Vector<{ auv::S }>,
+) -> Result<(), AdapterError> {
+    let limit = |k: u16| Limit {
+        source: Source::State(k),
+        low: -100.0,
+        high: 100.0,
+    };
+    let guard = Guard::<6, { auv::TICKS as usize }>::try_new(GuardConfig {
+        limits: [limit(0), limit(1), limit(2), limit(3), limit(4), limit(5)],
+        relative_margin: 10.0,
+        absolute_margin: 10.0,
+        tripped_cost_span: 5.0,
+        ..GuardConfig::DEFAULT
+    })?;
+    defmt::info!(
+        "footprint: size_of Guard<6, 240> = {=usize}",
+        core::mem::size_of_val(&guard)
+    );
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(2);
+    let mut adapter = Adapter::try_new(
+        auv::coordinate_search(u32::MAX)?,
+        auv::controller()?,
+        ctrl_adapt::cost::SurveyCost::try_new(auv::RADIUS)?,
+        auv::adapter_config(u32::MAX),
+        theta,
+    )?
+    .with_guard(guard)?;
+    for mode in [Mode::Nominal, Mode::Deploy] {
+        adapter.set_mode(mode)?;
+        adapter.begin_episode(&mut rng)?;
+        let mut states = Xoshiro128PlusPlus::seed_from_u64(3);
+        for _ in 0..TICKS {
+            let x = next(&mut states);
+            let error = Vector::<3>::new(x[0], x[1], x[2]);
+            if mode == Mode::Deploy {
+                sections::guarded_control::measure(|| adapter.control(&x, &error));
+            } else {
+                adapter.control(&x, &error);
+            }
+        }
+        let report = adapter.end_episode()?;
+        defmt::info!(
+            "footprint: guarded ticks = {=u32}, tripped = {=bool}",
+            report.ticks,
+            report.trip.is_some()
+        );
     }
     Ok(())
 }

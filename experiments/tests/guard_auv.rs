@@ -1,0 +1,313 @@
+//! The runtime guard on the AUV survey: learning with and without it, for coordinate search,
+//! diagonal CEM and CMA-ES, in the "real" current (0.6 m/s along +x) and in the same current
+//! rotated by 45° about the vertical (along (1, 1, 0)/√2). Release only:
+//!
+//! ```text
+//! cargo test --release -p experiments --test guard_auv -- --nocapture --test-threads 1
+//! ```
+//!
+//! `tune` chooses the guard's envelope margin and hysteresis on seeds 101–110; `report`
+//! measures the chosen guard on seeds 1–10 (the table in findings/guard.md).
+//!
+//! Every run: 3 bare episodes ([`Mode::Nominal`]; they teach the guard its envelope, and
+//! their mean cost is "the bare controller's cost" of the seed), then 150 learning episodes
+//! from W = 0. Both arms run the same bare episodes and the same plant seed.
+//!
+//! * **unsafe episode**: a learning episode whose *executed* survey cost (the shaper's,
+//!   whatever was told) exceeds 1.2 × the bare controller's cost;
+//! * **ticks beyond limits**: ticks at which the vehicle is more than 8 m from the target
+//!   (it starts 7.2 m away; the guard's one limit, a safety signal computed by the loop);
+//! * **success**: the first learning episode with cost < D = 1 m (J > −1).
+
+#![cfg(not(debug_assertions))]
+
+use ctrl_adapt::controller::guard::{Guard, GuardConfig, Limit, Source};
+use ctrl_adapt::controller::{Adapter, Mode};
+use ctrl_adapt::cost::SurveyCost;
+use ctrl_adapt::optimizer::{
+    CemConfig, Cmaes, CmaesConfig, DiagonalCem, Optimizer, Vector, Weighting,
+};
+use host_tests::auv::{Auv, AuvConfig};
+use host_tests::auv_task::{self, AuvController, P, RADIUS};
+use rand_core::SeedableRng;
+use rand_xoshiro::Xoshiro128PlusPlus;
+
+const BUDGET: u32 = 150;
+const BARE_EPISODES: usize = 3;
+/// Envelope ticks: the 24 s episode at 10 Hz.
+const TICKS: usize = 240;
+/// The distance limit (m).
+const FAR: f32 = 8.0;
+const UNSAFE_RATIO: f32 = 1.2;
+
+#[derive(Debug, Clone, Copy)]
+struct Setting {
+    relative_margin: f32,
+    absolute_margin: f32,
+    envelope_ticks: u32,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Outcome {
+    unsafe_episodes: u32,
+    /// Of the unsafe episodes, those the guard had tripped.
+    unsafe_tripped: u32,
+    ticks_beyond: u32,
+    tripped: u32,
+    success: Option<u32>,
+    best: f32,
+}
+
+fn rotated() -> AuvConfig {
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    AuvConfig {
+        current_direction: [s, s, 0.0],
+        ..AuvConfig::REAL
+    }
+}
+
+/// Runs the episodes of one arm; `guard` None runs unguarded.
+fn run<O: Optimizer<P>>(
+    optimizer: O,
+    plant: AuvConfig,
+    seed: u64,
+    guard: Option<Setting>,
+) -> Outcome {
+    let adapter = auv_task::adapter(optimizer, BUDGET, Vector::zeros()).unwrap();
+    let mut auv = auv_task::plant(plant, seed);
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    match guard {
+        None => learn(adapter, &mut auv, &mut rng),
+        Some(s) => {
+            let config = GuardConfig {
+                limits: [Limit {
+                    source: Source::Signal(0),
+                    low: 0.0,
+                    high: FAR,
+                }],
+                limit_ticks: 2,
+                envelope_ticks: s.envelope_ticks,
+                relative_margin: s.relative_margin,
+                absolute_margin: s.absolute_margin,
+                tripped_cost_span: 5.0,
+            };
+            let guard = Guard::<1, TICKS>::try_new(config).unwrap();
+            learn(adapter.with_guard(guard).unwrap(), &mut auv, &mut rng)
+        }
+    }
+}
+
+/// The loop, generic over the guard: bare episodes, then learning.
+fn learn<O, G>(
+    mut adapter: Adapter<O, AuvController, SurveyCost, P, 6, 3, G>,
+    auv: &mut Auv,
+    rng: &mut Xoshiro128PlusPlus,
+) -> Outcome
+where
+    O: Optimizer<P>,
+    G: ctrl_adapt::controller::guard::Supervisor<6>,
+{
+    let mut episode = |adapter: &mut Adapter<O, AuvController, SurveyCost, P, 6, 3, G>| {
+        auv.reset();
+        adapter.begin_episode(rng).unwrap();
+        let mut beyond = 0;
+        for _ in 0..auv.steps_per_episode() {
+            let state = auv_task::policy_state(auv);
+            let error = auv_task::true_error(auv);
+            let d = error.norm();
+            if d > FAR {
+                beyond += 1;
+            }
+            let u = adapter.control_with_signal(&state, &error, &[d]);
+            auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
+        }
+        let report = adapter.end_episode().unwrap();
+        (report, beyond)
+    };
+    adapter.set_mode(Mode::Nominal).unwrap();
+    let bare: f32 = (0..BARE_EPISODES)
+        .map(|_| episode(&mut adapter).0.cost)
+        .sum::<f32>()
+        / BARE_EPISODES as f32;
+    adapter.set_mode(Mode::Learn).unwrap();
+    let mut outcome = Outcome {
+        best: f32::INFINITY,
+        ..Outcome::default()
+    };
+    for k in 1..=BUDGET {
+        let (report, beyond) = episode(&mut adapter);
+        if report.mode != Mode::Learn {
+            break;
+        }
+        let unsafe_episode = report.cost > UNSAFE_RATIO * bare;
+        outcome.unsafe_episodes += u32::from(unsafe_episode);
+        outcome.unsafe_tripped += u32::from(unsafe_episode && report.trip.is_some());
+        outcome.ticks_beyond += beyond;
+        outcome.tripped += u32::from(report.trip.is_some());
+        if report.cost < RADIUS && outcome.success.is_none() {
+            outcome.success = Some(k);
+        }
+        outcome.best = outcome.best.min(report.cost);
+    }
+    outcome
+}
+
+type Learner = (&'static str, fn(AuvConfig, u64, Option<Setting>) -> Outcome);
+
+fn learners() -> [Learner; 3] {
+    [
+        ("coordinate search", |plant, seed, guard| {
+            run(
+                auv_task::coordinate_search(Vector::zeros(), BUDGET).unwrap(),
+                plant,
+                seed,
+                guard,
+            )
+        }),
+        ("diagonal CEM", |plant, seed, guard| {
+            let config = CemConfig {
+                weighting: Weighting::CmaEs,
+                initial_variance: 1e-2,
+                exploration_floor: 1e-6,
+                max_variance: 0.25,
+                max_evaluations: BUDGET,
+                ..CemConfig::DEFAULT
+            };
+            let cem = DiagonalCem::<18, 10, 5>::try_with_variances(
+                auv_task::bounds(),
+                Vector::zeros(),
+                Vector::repeat(0.25 * 0.25),
+                config,
+            )
+            .unwrap();
+            run(cem, plant, seed, guard)
+        }),
+        ("CMA-ES", |plant, seed, guard| {
+            let config = CmaesConfig {
+                initial_sigma: 0.25,
+                max_evaluations: BUDGET,
+                ..CmaesConfig::DEFAULT
+            };
+            let cmaes =
+                Cmaes::<18, 12>::try_new(auv_task::bounds(), Vector::zeros(), config).unwrap();
+            run(cmaes, plant, seed, guard)
+        }),
+    ]
+}
+
+#[derive(Debug, Default)]
+struct Totals {
+    unsafe_episodes: u32,
+    unsafe_tripped: u32,
+    ticks_beyond: u32,
+    tripped: u32,
+    successes: u32,
+    to_success: Vec<f64>,
+}
+
+impl Totals {
+    fn add(&mut self, o: Outcome) {
+        self.unsafe_episodes += o.unsafe_episodes;
+        self.unsafe_tripped += o.unsafe_tripped;
+        self.ticks_beyond += o.ticks_beyond;
+        self.tripped += o.tripped;
+        if let Some(k) = o.success {
+            self.successes += 1;
+            self.to_success.push(f64::from(k));
+        }
+    }
+
+    fn median(&self) -> String {
+        if self.to_success.is_empty() {
+            "–".into()
+        } else {
+            format!("{}", host_tests::median(self.to_success.clone()))
+        }
+    }
+}
+
+fn table(seeds: std::ops::RangeInclusive<u64>, setting: Setting) -> Vec<(String, Totals, Totals)> {
+    let mut rows = Vec::new();
+    for (current, plant) in [
+        ("0.6 m/s +x", AuvConfig::REAL),
+        ("0.6 m/s rotated 45°", rotated()),
+    ] {
+        for (name, learner) in learners() {
+            let (mut off, mut on) = (Totals::default(), Totals::default());
+            for seed in seeds.clone() {
+                off.add(learner(plant, seed, None));
+                on.add(learner(plant, seed, Some(setting)));
+            }
+            rows.push((format!("{name}, {current}"), off, on));
+        }
+    }
+    rows
+}
+
+fn print(rows: &[(String, Totals, Totals)]) {
+    println!(
+        "| learner, current | unsafe episodes off / on (on and tripped) | ticks beyond 8 m off / on | tripped (on) | successes off / on | median episodes to success off / on |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- |");
+    for (name, off, on) in rows {
+        println!(
+            "| {name} | {} / {} ({}) | {} / {} | {} | {} / {} | {} / {} |",
+            off.unsafe_episodes,
+            on.unsafe_episodes,
+            on.unsafe_tripped,
+            off.ticks_beyond,
+            on.ticks_beyond,
+            on.tripped,
+            off.successes,
+            on.successes,
+            off.median(),
+            on.median()
+        );
+    }
+}
+
+/// The setting reported (chosen by `tune` on seeds 101–110).
+const CHOSEN: Setting = Setting {
+    relative_margin: 0.5,
+    absolute_margin: 0.5,
+    envelope_ticks: 2,
+};
+
+#[test]
+fn tune() {
+    // The first grid (two hysteresis counts were not compared there: with the survey cost
+    // a violation, once begun, lasts) then around its best.
+    let grid = [
+        (0.05, 0.0),
+        (0.05, 0.5),
+        (0.2, 0.0),
+        (0.2, 0.5),
+        (0.5, 0.0),
+        (0.5, 0.5),
+    ]
+    .map(|(r, a)| (r, a, 2))
+    .into_iter()
+    .chain([(0.5, 0.5, 1), (0.5, 0.5, 3), (0.3, 0.5, 2), (0.5, 1.0, 2)]);
+    for (relative_margin, absolute_margin, envelope_ticks) in grid {
+        let setting = Setting {
+            relative_margin,
+            absolute_margin,
+            envelope_ticks,
+        };
+        if std::env::var("GUARD_TUNE_ALL").is_err()
+            && envelope_ticks == 2
+            && relative_margin != 0.3
+            && absolute_margin != 1.0
+        {
+            continue;
+        }
+        println!("\n{setting:?}, seeds 101–110");
+        print(&table(101..=110, setting));
+    }
+}
+
+#[test]
+fn report() {
+    println!("\n{CHOSEN:?}, seeds 1–10");
+    print(&table(1..=10, CHOSEN));
+}
