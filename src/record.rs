@@ -867,7 +867,7 @@ mod tests {
     fn line_bo_on_a_narrow_offset_box_reloads() {
         let bounds = Bounds::<1>::try_new([100.0].into(), [100.001].into()).unwrap();
         let s = LineBo::<1, 8>::try_new(bounds, [100.0].into(), LineBoConfig::DEFAULT).unwrap();
-        assert_eq!(load::<LineBo<1, 8>>(&bytes(&s)), Ok(s.clone()));
+        assert_eq!(load::<LineBo<1, 8>>(&bytes(&s)), Ok(s));
         check_reloads(s, 6, true, 1);
     }
 

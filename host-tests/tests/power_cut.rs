@@ -439,7 +439,7 @@ impl Persistent for Strict {
     const SHAPE: Shape = Shape::new(*b"STRC", &[]);
 
     fn validate(&self) -> Result<(), ctrl_adapt::Error> {
-        if self.count % 2 == 0 {
+        if self.count.is_multiple_of(2) {
             Ok(())
         } else {
             Err(ctrl_adapt::Error::InvalidParameter("count"))
