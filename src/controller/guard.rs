@@ -929,7 +929,7 @@ mod tests {
         // A decoded guard with a NaN envelope is refused.
         let mut broken = Guard::<0, 8>::try_new(GuardConfig::DEFAULT).unwrap();
         broken.envelope[2] = 0x7FC0; // NaN
-        let bytes = record::save(&broken, &mut buf).unwrap();
+        let bytes = record::save_unchecked(&broken, &mut buf).unwrap();
         assert!(matches!(
             record::load::<Guard<0, 8>>(bytes),
             Err(RecordError::Invalid(_))

@@ -277,14 +277,14 @@ mod tests {
         assert_eq!(record::load::<Corrected<Gain, 1, 1, 1>>(&bytes), Ok(c));
         let mut forged = c;
         forged.limit = Vector::repeat(f32::NAN);
-        let bytes = record::save(&forged, &mut buf).unwrap().to_vec();
+        let bytes = record::save_unchecked(&forged, &mut buf).unwrap().to_vec();
         assert_eq!(
             record::load::<Corrected<Gain, 1, 1, 1>>(&bytes),
             Err(RecordError::Invalid(Error::InvalidParameter("limit")))
         );
         let mut forged = c;
         forged.nominal = Gain(f32::INFINITY);
-        let bytes = record::save(&forged, &mut buf).unwrap().to_vec();
+        let bytes = record::save_unchecked(&forged, &mut buf).unwrap().to_vec();
         assert_eq!(
             record::load::<Corrected<Gain, 1, 1, 1>>(&bytes),
             Err(RecordError::Invalid(Error::InvalidParameter("gain")))
