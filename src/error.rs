@@ -72,7 +72,6 @@ pub(crate) fn require(valid: bool, parameter: &'static str) -> Result<(), Error>
 
 /// `Ok` when every value is finite, else [`Error::NonFinite`] naming `field`: the
 /// commonest check of a decoded state.
-#[cfg(feature = "serde")]
 pub(crate) fn require_finite<'a>(
     values: impl IntoIterator<Item = &'a f32>,
     field: &'static str,

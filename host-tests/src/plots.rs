@@ -50,18 +50,25 @@ fn range_of(values: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
+/// A log axis's range over the positive finite `values`, padded by a factor 1.5.
+fn log_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo.is_finite() && hi > lo {
+        (lo / 1.5, hi * 1.5)
+    } else {
+        (1.0, 10.0)
+    }
+}
+
 fn curve_panel(area: &DrawingArea<SVGBackend, Shift>, curve: &Curve, y_label: &str) -> PlotResult {
     let extra = curve.threshold.map(|(t, _)| t);
     let all = || curve.values.iter().chain(curve.best).copied().chain(extra);
     if curve.log_y {
-        let positive = || all().filter(|v| v.is_finite() && *v > 0.0);
-        let lo = positive().fold(f64::INFINITY, f64::min);
-        let hi = positive().fold(f64::NEG_INFINITY, f64::max);
-        let (lo, hi) = if lo.is_finite() && hi > lo {
-            (lo / 1.5, hi * 1.5)
-        } else {
-            (1.0, 10.0)
-        };
+        let (lo, hi) = log_range(all());
         let mut chart = chart_on(area, curve)
             .build_cartesian_2d(1f64..curve.values.len().max(2) as f64, (lo..hi).log_scale())?;
         chart
@@ -185,19 +192,7 @@ pub fn log_cost_curves(path: &Path, caption: &str, series: &[Series], y_label: &
         .max()
         .unwrap_or(2)
         .max(2) as f64;
-    let positive = || {
-        series
-            .iter()
-            .flat_map(|s| s.values.iter().copied())
-            .filter(|v| v.is_finite() && *v > 0.0)
-    };
-    let lo = positive().fold(f64::INFINITY, f64::min);
-    let hi = positive().fold(f64::NEG_INFINITY, f64::max);
-    let (lo, hi) = if lo.is_finite() && hi > lo {
-        (lo / 1.5, hi * 1.5)
-    } else {
-        (1.0, 10.0)
-    };
+    let (lo, hi) = log_range(series.iter().flat_map(|s| s.values.iter().copied()));
     let root = SVGBackend::new(path, (760, 500)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)

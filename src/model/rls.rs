@@ -29,7 +29,7 @@
 use nalgebra::SMatrix;
 
 use super::Regressors;
-use crate::error::{Error, require};
+use crate::error::{Error, require, require_finite};
 use crate::vector::Vector;
 
 /// The constants of an [`RlsModel`].
@@ -345,18 +345,6 @@ impl<const S: usize, const A: usize, const R: usize> RlsModel<S, A, R> {
             }
         }
         Ok(())
-    }
-}
-
-/// `Ok` when every value is finite, else [`Error::NonFinite`] naming `field`.
-fn require_finite<'a>(
-    values: impl IntoIterator<Item = &'a f32>,
-    field: &'static str,
-) -> Result<(), Error> {
-    if values.into_iter().all(|v| v.is_finite()) {
-        Ok(())
-    } else {
-        Err(Error::NonFinite(field))
     }
 }
 
