@@ -377,12 +377,15 @@ impl<const L: usize, const T: usize> Guard<L, T> {
     /// early exit on the Cortex-M4F).
     fn violated<const S: usize>(&self, state: &Vector<S>, signal: &[f32]) -> Option<u16> {
         let outside = |limit: &Limit| {
-            let value = match limit.source {
-                Source::State(k) => state.get(k as usize),
-                Source::Signal(k) => signal.get(k as usize),
+            // The source picks a slice (a select, not a branch, on the Cortex-M4F), then one
+            // bounds check reads the value.
+            let (values, k) = match limit.source {
+                Source::State(k) => (state.as_slice(), k),
+                Source::Signal(k) => (signal, k),
             };
+            let k = usize::from(k);
             // A missing value is NaN, and `!(low <= v && v <= high)` holds for NaN.
-            let v = value.copied().unwrap_or(f32::NAN);
+            let v = if k < values.len() { values[k] } else { f32::NAN };
             !((limit.low <= v) & (v <= limit.high))
         };
         if L <= 32 {
