@@ -311,3 +311,139 @@ fn report() {
     println!("\n{CHOSEN:?}, seeds 1–10");
     print(&table(1..=10, CHOSEN));
 }
+
+/// How early must a guard hand an unsafe episode back to stay safe? For every unsafe
+/// learning episode of the unguarded coordinate search and CMA-ES (seeds 1–10, both
+/// currents), the episode is replayed on a copy of the plant as it was before it (the same
+/// disturbances), with θ handed back to the bare PD at tick h = 0, 5, …, 235 (a guard whose
+/// signal limit trips at exactly h), and the latest h whose episode still ends safe (cost
+/// ≤ 1.2 × the bare cost) is kept: the lead time any guard needs on that episode. Nothing
+/// is chosen here; it measures the plant.
+#[test]
+fn lead_time() {
+    const STEP: usize = 5;
+    for (current, plant) in [
+        ("0.6 m/s +x", AuvConfig::REAL),
+        ("0.6 m/s rotated 45°", rotated()),
+    ] {
+        for (name, cmaes) in [("coordinate search", false), ("CMA-ES", true)] {
+            // Latest safe hand-over tick per unsafe episode; None: unsafe even when handed
+            // back at tick 0 (the bare PD's own noise).
+            let mut latest: Vec<Option<usize>> = Vec::new();
+            for seed in 1..=10u64 {
+                let optimizer: Box<dyn FnOnce() -> Vec<(Auv, Vector<P>, f32, f32)>> = if cmaes {
+                    let config = CmaesConfig {
+                        initial_sigma: 0.25,
+                        max_evaluations: BUDGET,
+                        ..CmaesConfig::DEFAULT
+                    };
+                    let o = Cmaes::<18, 12>::try_new(auv_task::bounds(), Vector::zeros(), config)
+                        .unwrap();
+                    Box::new(move || unsafe_episodes(o, plant, seed))
+                } else {
+                    let o = auv_task::coordinate_search(Vector::zeros(), BUDGET).unwrap();
+                    Box::new(move || unsafe_episodes(o, plant, seed))
+                };
+                for (before, theta, bare, _cost) in optimizer() {
+                    let safe_at = |h: usize| replay(&before, theta, h) <= UNSAFE_RATIO * bare;
+                    latest.push((0..TICKS).step_by(STEP).rev().find(|&h| safe_at(h)));
+                }
+            }
+            let n = latest.len();
+            let never = latest.iter().filter(|h| h.is_none()).count();
+            let within = |s: usize| {
+                latest
+                    .iter()
+                    .filter(|h| h.is_some_and(|h| h < s * 10))
+                    .count()
+            };
+            let mut known: Vec<f64> = latest.iter().flatten().map(|&h| h as f64 / 10.0).collect();
+            known.sort_by(f64::total_cmp);
+            let median = if known.is_empty() {
+                f64::NAN
+            } else {
+                host_tests::median(known.clone())
+            };
+            println!(
+                "| {name}, {current} | {n} | {never} | {} | {} | {} | {median:.1} |",
+                within(2),
+                within(5),
+                within(10),
+            );
+        }
+    }
+}
+
+/// The unsafe learning episodes of an unguarded run: the plant before each, its θ, the bare
+/// cost of the run and the episode's cost.
+fn unsafe_episodes<O: Optimizer<P>>(
+    optimizer: O,
+    plant: AuvConfig,
+    seed: u64,
+) -> Vec<(Auv, Vector<P>, f32, f32)> {
+    let mut adapter = auv_task::adapter(optimizer, BUDGET, Vector::zeros()).unwrap();
+    let mut auv = auv_task::plant(plant, seed);
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let mut episode = |adapter: &mut auv_task::AuvAdapter<O>, auv: &mut Auv| {
+        auv.reset();
+        adapter.begin_episode(&mut rng).unwrap();
+        for _ in 0..auv.steps_per_episode() {
+            let state = auv_task::policy_state(auv);
+            let error = auv_task::true_error(auv);
+            let u = adapter.control(&state, &error);
+            auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
+        }
+        adapter.end_episode().unwrap()
+    };
+    adapter.set_mode(Mode::Nominal).unwrap();
+    let bare: f32 = (0..BARE_EPISODES)
+        .map(|_| episode(&mut adapter, &mut auv).cost)
+        .sum::<f32>()
+        / BARE_EPISODES as f32;
+    adapter.set_mode(Mode::Learn).unwrap();
+    let mut out = Vec::new();
+    for _ in 0..BUDGET {
+        let before = auv.clone();
+        let report = episode(&mut adapter, &mut auv);
+        if report.mode != Mode::Learn {
+            break;
+        }
+        if report.cost > UNSAFE_RATIO * bare {
+            out.push((before, report.theta, bare, report.cost));
+        }
+    }
+    out
+}
+
+/// The executed cost of θ on a copy of `before`, handed back to the bare PD at tick `h`.
+fn replay(before: &Auv, theta: Vector<P>, h: usize) -> f32 {
+    let mut auv = before.clone();
+    let guard = Guard::<1, 0>::try_new(GuardConfig {
+        limits: [Limit {
+            source: Source::Signal(0),
+            low: 0.0,
+            high: 0.5,
+        }],
+        limit_ticks: 1,
+        ..GuardConfig::DEFAULT
+    })
+    .unwrap();
+    let mut adapter = auv_task::adapter(
+        auv_task::coordinate_search(Vector::zeros(), 1).unwrap(),
+        1,
+        Vector::zeros(),
+    )
+    .unwrap()
+    .with_guard(guard)
+    .unwrap();
+    auv.reset();
+    adapter.begin_fixed_episode(theta).unwrap();
+    for k in 0..auv.steps_per_episode() {
+        let state = auv_task::policy_state(&auv);
+        let error = auv_task::true_error(&auv);
+        let signal = if k >= h { 1.0 } else { 0.0 };
+        let u = adapter.control_with_signal(&state, &error, &[signal]);
+        auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
+    }
+    adapter.end_episode().unwrap().cost
+}
