@@ -344,7 +344,9 @@ fn lead_time() {
                     let o = auv_task::coordinate_search(Vector::zeros(), BUDGET).unwrap();
                     Box::new(move || unsafe_episodes(o, plant, seed))
                 };
-                for (before, theta, bare, _cost) in optimizer() {
+                for (before, theta, bare, cost) in optimizer() {
+                    // The replay never handed back is the episode itself.
+                    assert_eq!(replay(&before, theta, TICKS), cost, "{name}, seed {seed}");
                     let safe_at = |h: usize| replay(&before, theta, h) <= UNSAFE_RATIO * bare;
                     latest.push((0..TICKS).step_by(STEP).rev().find(|&h| safe_at(h)));
                 }

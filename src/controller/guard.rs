@@ -385,7 +385,11 @@ impl<const L: usize, const T: usize> Guard<L, T> {
             };
             let k = usize::from(k);
             // A missing value is NaN, and `!(low <= v && v <= high)` holds for NaN.
-            let v = if k < values.len() { values[k] } else { f32::NAN };
+            let v = if k < values.len() {
+                values[k]
+            } else {
+                f32::NAN
+            };
             !((limit.low <= v) & (v <= limit.high))
         };
         if L <= 32 {
