@@ -1225,6 +1225,7 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
             envelope_ticks: count(&mut rng, 2).min(5),
             relative_margin: field(&mut rng, 0.1),
             absolute_margin: field(&mut rng, 0.05),
+            margin_taper: field(&mut rng, 0.5),
             tripped_cost_span: field(&mut rng, 10.0),
         };
         let failure_cost = 50.0;

@@ -16,7 +16,9 @@
 //! 2. **the envelope**: the running cost ([`Shaper::cost`](crate::cost::Shaper::cost) after
 //!    this tick's observation) against the per-tick maximum of the running cost of the bare
 //!    episodes ([`Mode::Nominal`]) the guard has seen, plus a margin:
-//!    `threshold(t) = e(t) + relative_margin·|e(t)| + absolute_margin`. Ticks that no bare
+//!    `threshold(t) = e(t) + w(t)·(relative_margin·|e(t)| + absolute_margin)`, where the
+//!    weight `w(t)` is 1 unless [`GuardConfig::margin_taper`] tapers the margins linearly
+//!    towards the last tick. Ticks that no bare
 //!    episode reached (beyond `T`, or beyond the longest bare episode) are not checked
 //!    against it, nor is any tick before the first bare episode.
 //!
@@ -113,6 +115,13 @@ pub struct GuardConfig<const L: usize> {
     pub relative_margin: f32,
     /// Margin of the envelope in units of the cost (≥ 0, finite).
     pub absolute_margin: f32,
+    /// The fraction of both margins left at the envelope's last tick, in [0, 1]: the margins
+    /// shrink linearly from their full value at tick 0 to this fraction of it at tick
+    /// `T − 1`. 1 (the default) keeps them constant. Below 1 the guard is lenient early,
+    /// where a good candidate may still lag the nominal controller, and strict late, where a
+    /// candidate still far above the envelope will end the episode there while the nominal
+    /// controller could still recover (see `experiments/findings/guard.md`).
+    pub margin_taper: f32,
     /// The span of the tripped cost above the failure cost (> 0, finite; see
     /// [`tripped_cost`]).
     pub tripped_cost_span: f32,
@@ -127,6 +136,7 @@ impl<const L: usize> GuardConfig<L> {
         envelope_ticks: 2,
         relative_margin: 0.1,
         absolute_margin: 0.0,
+        margin_taper: 1.0,
         tripped_cost_span: 1.0,
     };
 
@@ -141,6 +151,8 @@ impl<const L: usize> GuardConfig<L> {
         let margin = |m: f32| m.is_finite() && m >= 0.0;
         require(margin(self.relative_margin), "relative_margin")?;
         require(margin(self.absolute_margin), "absolute_margin")?;
+        let taper = self.margin_taper;
+        require((0.0..=1.0).contains(&taper), "margin_taper")?;
         let span = self.tripped_cost_span;
         require(span.is_finite() && span > 0.0, "tripped_cost_span")?;
         Ok(())
@@ -356,11 +368,19 @@ impl<const L: usize, const T: usize> Guard<L, T> {
         self.counters.bare_episodes = 0;
     }
 
-    /// The running cost allowed at `tick`, margins included; `None` where unchecked.
+    /// The running cost allowed at `tick`, margins included (tapered by
+    /// [`GuardConfig::margin_taper`]); `None` where unchecked.
     pub fn threshold(&self, tick: u32) -> Option<f32> {
         let e = self.envelope(tick)?;
+        let c = &self.config;
+        // Linear from 1 at tick 0 to the taper at tick T − 1 (T = 1: the taper).
+        let weight = if T > 1 {
+            1.0 - (1.0 - c.margin_taper) * (tick as f32 / (T - 1) as f32)
+        } else {
+            c.margin_taper
+        };
         e.is_finite()
-            .then(|| e + self.config.relative_margin * e.abs() + self.config.absolute_margin)
+            .then(|| e + weight * (c.relative_margin * e.abs() + c.absolute_margin))
     }
 
     fn reset_episode(&mut self) {
@@ -718,6 +738,36 @@ mod tests {
         assert_eq!(r.guard().counters().bare_episodes, 1);
     }
 
+    #[test]
+    fn tapered_margins_shrink_linearly_to_the_taper_at_the_last_tick() {
+        // Envelope 4 at every tick of 5 (running costs 4, then 0 added), margins 0.5·4 + 1 = 3
+        // at tick 0, a quarter of that at tick 4, half way at tick 2.
+        let guard = Guard::<0, 5>::try_new(GuardConfig {
+            relative_margin: 0.5,
+            absolute_margin: 1.0,
+            margin_taper: 0.25,
+            ..GuardConfig::DEFAULT
+        })
+        .unwrap();
+        let mut r = runner().with_guard(guard).unwrap();
+        r.begin_episode(Vector::zeros(), Mode::Nominal).unwrap();
+        r.control(&Vector::zeros(), &4.0);
+        for _ in 1..5 {
+            r.control(&Vector::zeros(), &0.0);
+        }
+        r.end_episode().unwrap();
+        let t = |k| r.guard().threshold(k).unwrap();
+        assert_eq!([t(0), t(2), t(4)], [7.0, 5.875, 4.75]);
+        // A running cost of 6 passes early and trips late (after the 2 ticks of hysteresis).
+        r.begin_episode(Vector::from(THETA), Mode::Learn).unwrap();
+        r.control(&Vector::zeros(), &6.0);
+        for _ in 1..5 {
+            r.control(&Vector::zeros(), &0.0);
+        }
+        let trip = r.end_episode().unwrap().trip.unwrap();
+        assert_eq!((trip.tick, trip.reason), (3, TripReason::Envelope));
+    }
+
     fn guarded_adapter() -> Adapter<CoordinateSearch<2>, Ctl, Sum, 2, 2, 1, Guard<0, 8>> {
         let search = CoordinateSearch::try_new(
             Bounds::uniform(-1.0, 1.0).unwrap(),
@@ -821,6 +871,18 @@ mod tests {
             },
             GuardConfig {
                 absolute_margin: f32::NAN,
+                ..base
+            },
+            GuardConfig {
+                margin_taper: -0.1,
+                ..base
+            },
+            GuardConfig {
+                margin_taper: 1.5,
+                ..base
+            },
+            GuardConfig {
+                margin_taper: f32::NAN,
                 ..base
             },
             GuardConfig {
