@@ -367,7 +367,7 @@ fn lead_time() {
             // back at tick 0 (the bare PD's own noise).
             let mut latest: Vec<Option<usize>> = Vec::new();
             for seed in 1..=10u64 {
-                let optimizer: Box<dyn FnOnce() -> Vec<(Auv, Vector<P>, f32, f32)>> = if cmaes {
+                let optimizer: Box<dyn FnOnce() -> Vec<Unsafe>> = if cmaes {
                     let config = CmaesConfig {
                         initial_sigma: 0.25,
                         max_evaluations: BUDGET,
@@ -412,13 +412,12 @@ fn lead_time() {
     }
 }
 
-/// The unsafe learning episodes of an unguarded run: the plant before each, its θ, the bare
-/// cost of the run and the episode's cost.
-fn unsafe_episodes<O: Optimizer<P>>(
-    optimizer: O,
-    plant: AuvConfig,
-    seed: u64,
-) -> Vec<(Auv, Vector<P>, f32, f32)> {
+/// An unsafe learning episode: the plant before it, its θ, the bare cost of the run and the
+/// episode's cost.
+type Unsafe = (Auv, Vector<P>, f32, f32);
+
+/// The unsafe learning episodes of an unguarded run.
+fn unsafe_episodes<O: Optimizer<P>>(optimizer: O, plant: AuvConfig, seed: u64) -> Vec<Unsafe> {
     let mut adapter = auv_task::adapter(optimizer, BUDGET, Vector::zeros()).unwrap();
     let mut auv = auv_task::plant(plant, seed);
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
