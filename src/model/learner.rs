@@ -59,6 +59,13 @@ pub struct ModelBasedConfig {
     pub margin: f32,
     /// Predictions the inner optimizer may make per proposal (≥ 1).
     pub inner_evaluations: u32,
+    /// k of the pessimistic screen (≥ 0, finite): a model candidate must pass the threshold
+    /// with its prediction plus k times the model's measured prediction error
+    /// ([`ModelBased::prediction_error`]). 0 screens on the point prediction alone.
+    pub error_weight: f32,
+    /// The prediction error assumed before any is measured (≥ 0, finite); it counts as one
+    /// measurement in the running root mean square, so it fades as real episodes come in.
+    pub initial_error: f32,
 }
 
 impl ModelBasedConfig {
@@ -72,6 +79,8 @@ impl ModelBasedConfig {
         shrink: 0.6,
         margin: 0.0,
         inner_evaluations: 240,
+        error_weight: 0.0,
+        initial_error: 0.0,
     };
 
     /// Checks every field (named in the error).
@@ -91,7 +100,15 @@ impl ModelBasedConfig {
         require(self.grow >= 1.0 && self.grow.is_finite(), "grow")?;
         require(self.shrink > 0.0 && self.shrink <= 1.0, "shrink")?;
         require(self.margin >= 0.0 && self.margin.is_finite(), "margin")?;
-        require(self.inner_evaluations >= 1, "inner_evaluations")
+        require(self.inner_evaluations >= 1, "inner_evaluations")?;
+        require(
+            self.error_weight >= 0.0 && self.error_weight.is_finite(),
+            "error_weight",
+        )?;
+        require(
+            self.initial_error >= 0.0 && self.initial_error.is_finite(),
+            "initial_error",
+        )
     }
 }
 
@@ -170,6 +187,11 @@ pub struct ModelBased<F, const N: usize> {
     reference: Option<f32>,
     pending: Option<Proposal<N>>,
     evaluations: u32,
+    /// The model's prediction of the pending proposal, when it could make one.
+    pending_prediction: Option<f32>,
+    /// Σ (real − predicted)² over the told proposals with a prediction, and their number.
+    squared_errors: f32,
+    errors: u32,
 }
 
 impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
@@ -189,6 +211,9 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
             reference: None,
             pending: None,
             evaluations: 0,
+            pending_prediction: None,
+            squared_errors: 0.0,
+            errors: 0,
         })
     }
 
@@ -283,8 +308,13 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
             .best
             .map(|b| predict(&b.theta).ok().filter(|c| c.is_finite()));
         let threshold = self.reference.map(|c| c + self.config.margin);
+        let pessimism = if self.config.error_weight > 0.0 {
+            min(self.config.error_weight * self.prediction_error(), f32::MAX)
+        } else {
+            0.0
+        };
         let passes = |predicted: f32| {
-            threshold.is_none_or(|t| predicted <= t)
+            threshold.is_none_or(|t| predicted + pessimism <= t)
                 && match incumbent {
                     // No real episode yet: nothing to beat.
                     None => true,
@@ -293,19 +323,30 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                     Some(None) => false,
                 }
         };
-        let proposal = match best_model {
-            Some((theta, predicted)) if passes(predicted) && self.bounds.contains(&theta) => {
+        let (proposal, prediction) = match best_model {
+            Some((theta, predicted)) if passes(predicted) && self.bounds.contains(&theta) => (
                 Proposal {
                     theta,
                     source: Source::Model(predicted),
-                }
+                },
+                Some(predicted),
+            ),
+            _ => {
+                let theta = self.fallback.ask(rng)?;
+                // Predicted too, so that the model's error is measured on every episode,
+                // not only on those it chose.
+                let predicted = predict(&theta).ok().filter(|c| c.is_finite());
+                (
+                    Proposal {
+                        theta,
+                        source: Source::Fallback,
+                    },
+                    predicted,
+                )
             }
-            _ => Proposal {
-                theta: self.fallback.ask(rng)?,
-                source: Source::Fallback,
-            },
         };
         self.pending = Some(proposal);
+        self.pending_prediction = prediction;
         Ok(proposal)
     }
 
@@ -318,6 +359,12 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
             self.fallback.tell(cost)?;
         }
         self.pending = None;
+        if let Some(predicted) = self.pending_prediction.take() {
+            let e = cost - predicted;
+            // Saturated, so that a huge error keeps the statistic large and finite.
+            self.squared_errors = min(self.squared_errors + e * e, f32::MAX);
+            self.errors = self.errors.saturating_add(1);
+        }
         self.evaluations = self.evaluations.saturating_add(1);
         self.radius = if self.improve(proposal.theta, cost) {
             min(self.radius * self.config.grow, self.config.max_radius)
@@ -335,6 +382,16 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
     /// The proposal handed out and not yet told.
     pub fn pending(&self) -> Option<&Proposal<N>> {
         self.pending.as_ref()
+    }
+
+    /// The model's measured prediction error of a real episode's cost: the root mean square
+    /// of real − predicted over the proposals told so far that the model could predict
+    /// (the model's own and the fallback's), with `initial_error` counted as one more.
+    /// The screen adds `error_weight` times this to a candidate's prediction.
+    pub fn prediction_error(&self) -> f32 {
+        let i = self.config.initial_error;
+        let sum = min(min(i * i, f32::MAX) + self.squared_errors, f32::MAX);
+        libm::sqrtf(sum / (1.0 + self.errors as f32))
     }
 
     /// The trust region's current half-width.
