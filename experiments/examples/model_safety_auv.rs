@@ -38,10 +38,11 @@
 use ctrl_adapt::controller::Controller;
 use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::model::{
-    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, RlsModel, Source, imagine_episode,
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Regressors, RlsModel, Source,
+    imagine_episode,
 };
 use ctrl_adapt::optimizer::{
-    Bounds, Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Optimizer, Vector,
+    Bounds, Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector,
 };
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
@@ -50,7 +51,10 @@ use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
 const DT: f32 = 0.1;
-const BUDGET: usize = 15;
+/// Real episodes per run: 15, or `BUDGET` from the environment (the 150).
+fn budget() -> usize {
+    std::env::var("BUDGET").map_or(15, |b| b.parse().expect("BUDGET"))
+}
 const INNER_BUDGET: u32 = 240;
 const LAYER: f32 = 2.0;
 const TARGET_DEPTH: f32 = 4.8;
@@ -156,8 +160,8 @@ struct Run {
 
 fn fallback(settings: &Settings) -> CoordinateSearch<P> {
     let config = CoordinateConfig {
-        max_evaluations: BUDGET as u32,
-        ..auv_task::local_config(BUDGET as u32)
+        max_evaluations: budget() as u32,
+        ..auv_task::local_config(budget() as u32)
     };
     CoordinateSearch::try_with_steps(
         auv_task::bounds(),
@@ -192,12 +196,32 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
     let bare = run(&Vector::zeros(), &mut auv);
     fit(&mut models, &bare);
     let start = bare.states[0];
+    // Explorations first, each predicted before it runs by the models fitted so far: their
+    // out-of-sample errors give the learner its initial error when `initial_error` < 0.
+    let width = scale(settings.velocity_scale) * settings.explore;
+    let mut explored = Vec::new();
+    let mut squared = 0.0f32;
+    for _ in 0..settings.explorations {
+        let theta = uniform(&mut rng, &width);
+        let predicted = predict_with(&models, &map, &start, &theta);
+        let e = run(&theta, &mut auv);
+        fit(&mut models, &e);
+        // A prediction that failed counts as an error of the failure cost, 10.
+        let error = predicted.map_or(10.0, |p| (e.cost - p).abs().min(10.0));
+        squared += error * error;
+        explored.push((theta, e.cost, predicted.ok()));
+    }
+    let measured = (squared / settings.explorations.max(1) as f32).sqrt();
     let config = ModelBasedConfig {
         initial_radius: settings.radius,
         margin: 0.2 * bare.cost.abs(),
         inner_evaluations: INNER_BUDGET,
         error_weight: settings.error_weight,
-        initial_error: settings.initial_error,
+        initial_error: if settings.initial_error < 0.0 {
+            measured
+        } else {
+            settings.initial_error
+        },
         ..ModelBasedConfig::DEFAULT
     };
     let mut learner = ModelBased::try_new(auv_task::bounds(), fallback(&settings), config).unwrap();
@@ -210,15 +234,11 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
         predicted: vec![None],
         errors: vec![learner.prediction_error()],
     };
-    let width = scale(settings.velocity_scale) * settings.explore;
-    for _ in 0..settings.explorations {
-        let theta = uniform(&mut rng, &width);
-        let e = run(&theta, &mut auv);
-        fit(&mut models, &e);
-        learner.record(theta, e.cost).unwrap();
-        run_.costs.push(e.cost);
+    for (theta, cost, predicted) in explored {
+        learner.record(theta, cost).unwrap();
+        run_.costs.push(cost);
         run_.source.push('e');
-        run_.predicted.push(None);
+        run_.predicted.push(predicted);
         run_.errors.push(learner.prediction_error());
     }
     let inner = |trust: Bounds<P>, centre: Vector<P>| {
@@ -229,27 +249,8 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
         };
         Cmaes::<P, 12>::try_new(trust, centre, config)
     };
-    while run_.costs.len() < BUDGET {
-        let predict = |theta: &Vector<P>| {
-            let mut worst = f32::MIN;
-            for model in &models {
-                let mut controller = auv_task::controller();
-                let mut shaper = SurveyCost::try_new(RADIUS).unwrap();
-                let c = imagine_episode(
-                    model,
-                    &map,
-                    &start,
-                    240,
-                    DT,
-                    &mut controller,
-                    theta,
-                    &mut shaper,
-                    |x| Vector::<3>::new(x[0], x[1], x[2]),
-                )?;
-                worst = worst.max(c);
-            }
-            Ok(worst)
-        };
+    while run_.costs.len() < budget() {
+        let predict = |theta: &Vector<P>| predict_with(&models, &map, &start, theta);
         let error = learner.prediction_error();
         let proposal = match learner.propose(&mut rng, inner, predict) {
             Ok(p) => p,
@@ -274,13 +275,40 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
     run_
 }
 
+/// The worst of the models' predicted survey costs of θ from `start`.
+fn predict_with<M: Regressors<6, 3, R>>(
+    models: &[RlsModel<6, 3, R>],
+    map: &M,
+    start: &Vector<6>,
+    theta: &Vector<P>,
+) -> Result<f32, Error> {
+    let mut worst = f32::MIN;
+    for model in models {
+        let mut controller = auv_task::controller();
+        let mut shaper = SurveyCost::try_new(RADIUS).unwrap();
+        let c = imagine_episode(
+            model,
+            map,
+            start,
+            240,
+            DT,
+            &mut controller,
+            theta,
+            &mut shaper,
+            |x| Vector::<3>::new(x[0], x[1], x[2]),
+        )?;
+        worst = worst.max(c);
+    }
+    Ok(worst)
+}
+
 /// The coordinate search alone from θ = 0 (the bare PD is its first candidate).
 fn coordinate(seed: u64, current: AuvConfig, settings: &Settings) -> Run {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
     let mut auv = plant(current, seed);
     let mut search = fallback(settings);
     let mut costs = Vec::new();
-    while costs.len() < BUDGET {
+    while costs.len() < budget() {
         let Ok(theta) = search.ask(&mut rng) else {
             break;
         };
@@ -304,17 +332,17 @@ fn coordinate(seed: u64, current: AuvConfig, settings: &Settings) -> Run {
 /// first episode's cost?
 fn bare(seed: u64, current: AuvConfig) -> Run {
     let mut auv = plant(current, seed);
-    let costs: Vec<f32> = (0..BUDGET)
+    let costs: Vec<f32> = (0..budget())
         .map(|_| run(&Vector::zeros(), &mut auv).cost)
         .collect();
-    let mut source = vec!['e'; BUDGET];
+    let mut source = vec!['e'; budget()];
     source[0] = 'b';
     Run {
-        bare_mean: costs.iter().sum::<f32>() / BUDGET as f32,
+        bare_mean: costs.iter().sum::<f32>() / budget() as f32,
         costs,
         source,
-        predicted: vec![None; BUDGET],
-        errors: vec![0.0; BUDGET],
+        predicted: vec![None; budget()],
+        errors: vec![0.0; budget()],
     }
 }
 
@@ -357,7 +385,7 @@ fn summary(current: &str, name: &str, runs: &[Run]) -> Summary {
     let med = median(
         first
             .iter()
-            .map(|f| f.unwrap_or(BUDGET + 1) as f64)
+            .map(|f| f.unwrap_or(budget() + 1) as f64)
             .collect(),
     );
     let split = |mean: bool| {
@@ -468,9 +496,7 @@ fn main() {
                 .collect()
         })
         .unwrap_or_else(|| vec![previous]);
-    println!(
-        "seeds {from}–{to}, {BUDGET} real episodes; unsafe = cost above 1.2 × the bare episode's"
-    );
+    println!("seeds {from}–{to}, {} real episodes per run", budget());
     println!(
         "| current | learner | seeds within 1 m | median episodes to 1 m | episodes above 1.2 × the first bare episode's cost | episodes above 1.2 × the bare mean cost | median best cost | episodes chosen by the model | fallback episodes | first episode within 1 m per seed |"
     );

@@ -497,6 +497,45 @@ mod tests {
     }
 
     #[test]
+    fn the_pessimistic_screen_adds_the_measured_error() {
+        // The model predicts every cost 0.1 too low.
+        let config = ModelBasedConfig {
+            error_weight: 2.0,
+            initial_error: 1.0,
+            ..ModelBasedConfig::DEFAULT
+        };
+        let mut l = learner(config);
+        let bare = real(&Vector::zeros());
+        l.record(Vector::zeros(), bare).unwrap();
+        l.set_reference(bare).unwrap();
+        assert!((l.prediction_error() - 1.0).abs() < 1e-6);
+        // The model's best passes on its point prediction (below the bare cost 0.29, the
+        // threshold with margin 0) but not with 2 × the assumed error 1 added: fallback.
+        let predict = |t: &Vector<2>| Ok(real(t) - 0.1);
+        let p = l.propose(&mut rng(1), inner, predict).unwrap();
+        assert_eq!(p.source, Source::Fallback);
+        let predicted = real(&p.theta) - 0.1;
+        l.tell(real(&p.theta)).unwrap();
+        // The fallback's episode was predicted too: its error (0.1) is measured.
+        let e = ((1.0 + 0.1f32 * 0.1) / 2.0).sqrt();
+        assert!(
+            (l.prediction_error() - e).abs() < 1e-4,
+            "{}",
+            l.prediction_error()
+        );
+        assert!((real(&p.theta) - predicted - 0.1).abs() < 1e-6);
+        // The same model with k = 0 passes its candidate.
+        let mut l = learner(ModelBasedConfig {
+            error_weight: 0.0,
+            ..config
+        });
+        l.record(Vector::zeros(), bare).unwrap();
+        l.set_reference(bare).unwrap();
+        let p = l.propose(&mut rng(1), inner, predict).unwrap();
+        assert!(matches!(p.source, Source::Model(_)));
+    }
+
+    #[test]
     fn refuses_bad_tells_and_records_without_change() {
         let mut l = learner(ModelBasedConfig::DEFAULT);
         assert_eq!(l.tell(1.0), Err(Error::NoPendingAsk));
@@ -569,6 +608,20 @@ mod tests {
                     ..ModelBasedConfig::DEFAULT
                 },
                 "inner_evaluations",
+            ),
+            (
+                ModelBasedConfig {
+                    error_weight: -1.0,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "error_weight",
+            ),
+            (
+                ModelBasedConfig {
+                    initial_error: f32::INFINITY,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "initial_error",
             ),
         ] {
             assert_eq!(config.validate(), Err(Error::InvalidParameter(field)));
