@@ -9,6 +9,7 @@
 //! ```text
 //! cargo run --release -p experiments --example model_learner_tasks -- hopper 1 10
 //! cargo run --release -p experiments --example model_learner_tasks -- arm 1 10
+//! cargo run --release -p experiments --example model_learner_tasks -- hopper 1 10 CMA-ES  # one row
 //! ```
 //!
 //! **Hopper** (`host_tests::hopper_task`: the 31-parameter periodic PD, the apex cost, each
@@ -56,6 +57,8 @@ const INNER: u32 = 240;
 /// What a learning run did: per real episode its cost, its source ('b' bare, 'e'
 /// exploration, 'm' model, 'f' fallback or the optimizer alone) and whether it was unsafe.
 struct Run {
+    /// The bare controller's (θ₀'s) cost: the reference of "unsafe" and of the ratio.
+    bare: f32,
     costs: Vec<f32>,
     source: Vec<char>,
     unsafe_: Vec<bool>,
@@ -218,6 +221,7 @@ fn hopper_model_based(seed: u64) -> Run {
     learner.set_reference(bare.cost).unwrap();
     let limit = 1.2 * bare.cost;
     let mut run = Run {
+        bare: bare.cost,
         costs: vec![bare.cost],
         source: vec!['b'],
         unsafe_: vec![bare.collapsed],
@@ -260,27 +264,29 @@ fn hopper_model_based(seed: u64) -> Run {
     run
 }
 
-/// An optimizer alone from the bare θ (its first candidate).
+/// An optimizer alone started at the bare θ (the episode is deterministic: the bare cost,
+/// the reference, is measured once more outside the budget).
 fn hopper_alone<O: Optimizer<HP>>(seed: u64, mut optimizer: O) -> Run {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let bare = hop(&Vector::zeros(), seed).cost;
     let mut run = Run {
+        bare,
         costs: Vec::new(),
         source: Vec::new(),
         unsafe_: Vec::new(),
     };
-    let mut limit = f32::INFINITY;
     while run.costs.len() < EPISODES {
         let Ok(theta) = optimizer.ask(&mut rng) else {
             break;
         };
         let e = hop(&theta, seed);
         optimizer.tell(e.cost).unwrap();
-        if run.costs.is_empty() {
-            limit = 1.2 * e.cost;
-        }
-        run.unsafe_.push(e.collapsed || e.cost > limit);
-        run.source
-            .push(if run.costs.is_empty() { 'b' } else { 'f' });
+        run.unsafe_.push(e.collapsed || e.cost > 1.2 * bare);
+        run.source.push(if theta == Vector::<HP>::zeros() {
+            'b'
+        } else {
+            'f'
+        });
         run.costs.push(e.cost);
     }
     run
@@ -399,6 +405,7 @@ fn arm_model_based(seed: u64) -> Run {
     learner.set_reference(bare).unwrap();
     let limit = 1.2 * bare;
     let mut run = Run {
+        bare,
         costs: vec![bare],
         source: vec!['b'],
         unsafe_: vec![false],
@@ -439,29 +446,31 @@ fn arm_model_based(seed: u64) -> Run {
     run
 }
 
-/// An optimizer alone on u from 0 (θ₀, its first candidate).
+/// An optimizer alone on u, started at 0 (θ₀; the arm is deterministic: θ₀'s cost, the
+/// reference, is measured once more outside the budget).
 fn arm_alone<O: Optimizer<PARAMS>>(seed: u64, mut optimizer: O) -> Run {
     let arm_ = ViaPointArm::new();
     let theta0 = arm_.minimum_jerk_theta();
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let bare = arm_.cost(&theta0);
     let mut run = Run {
+        bare,
         costs: Vec::new(),
         source: Vec::new(),
         unsafe_: Vec::new(),
     };
-    let mut limit = f32::INFINITY;
     while run.costs.len() < EPISODES {
         let Ok(u) = optimizer.ask(&mut rng) else {
             break;
         };
         let c = arm_.cost(&(theta0 + u * UNIT));
         optimizer.tell(c).unwrap();
-        if run.costs.is_empty() {
-            limit = 1.2 * c;
-        }
-        run.unsafe_.push(c > limit);
-        run.source
-            .push(if run.costs.is_empty() { 'b' } else { 'f' });
+        run.unsafe_.push(c > 1.2 * bare);
+        run.source.push(if u == Vector::<PARAMS>::zeros() {
+            'b'
+        } else {
+            'f'
+        });
         run.costs.push(c);
     }
     run
@@ -472,33 +481,36 @@ fn arm_study(seeds: &[u64]) {
         "arm, seeds {seeds:?}, {EPISODES} real episodes per seed; success: cost below 1 % of θ₀'s"
     );
     header();
-    let success = |r: &Run, c: f32| c < 0.01 * r.costs[0];
-    let runs: Vec<Run> = seeds.iter().map(|&s| arm_model_based(s)).collect();
-    summary(
+    let success = |r: &Run, c: f32| c < 0.01 * r.bare;
+    report(
         "`ModelBased` (inner CMA-ES, fallback coordinate search)",
-        &runs,
+        seeds,
+        arm_model_based,
         success,
     );
     let theta0 = ViaPointArm::new().minimum_jerk_theta();
-    let runs: Vec<Run> = seeds
-        .iter()
-        .map(|&s| {
+    report(
+        "coordinate search alone (step 0.25 units)",
+        seeds,
+        |s| {
             let config = CoordinateConfig {
                 initial_step: 0.25,
                 tolerance: 1e-3,
                 max_evaluations: EPISODES as u32,
                 ..CoordinateConfig::DEFAULT
             };
+            let unit = arm_bounds(&theta0);
             arm_alone(
                 s,
-                CoordinateSearch::try_new(arm_bounds(&theta0), Vector::zeros(), config).unwrap(),
+                CoordinateSearch::try_new(unit, Vector::zeros(), config).unwrap(),
             )
-        })
-        .collect();
-    summary("coordinate search alone (step 0.25 units)", &runs, success);
-    let runs: Vec<Run> = seeds
-        .iter()
-        .map(|&s| {
+        },
+        success,
+    );
+    report(
+        "CMA-ES alone (λ = 14, σ₀ one unit)",
+        seeds,
+        |s| {
             // σ₀ one unit (100): the via-point study's exploration.
             let config = CmaesConfig {
                 initial_sigma: 0.01,
@@ -510,9 +522,9 @@ fn arm_study(seeds: &[u64]) {
                 s,
                 Cmaes::<PARAMS, 14>::try_new(b, Vector::zeros(), config).unwrap(),
             )
-        })
-        .collect();
-    summary("CMA-ES alone (λ = 14, σ₀ one unit)", &runs, success);
+        },
+        success,
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -534,7 +546,7 @@ fn summary(name: &str, runs: &[Run], success: impl Fn(&Run, f32) -> bool) {
         .iter()
         .map(|r| f64::from(r.costs.iter().copied().fold(f32::INFINITY, f32::min)))
         .collect();
-    let bare: Vec<f64> = runs.iter().map(|r| f64::from(r.costs[0])).collect();
+    let bare: Vec<f64> = runs.iter().map(|r| f64::from(r.bare)).collect();
     let ratio = median(best.iter().zip(&bare).map(|(b, c)| b / c).collect());
     let count = |kind: char| -> usize {
         runs.iter()
@@ -583,46 +595,61 @@ fn header() {
 }
 
 fn hopper_study(seeds: &[u64]) {
-    println!(
-        "hopper, seeds {:?}, {EPISODES} real episodes per seed; success: cost ≤ 3e-4",
-        seeds
-    );
+    println!("hopper, seeds {seeds:?}, {EPISODES} real episodes per seed; success: cost ≤ 3e-4");
     header();
     let success = |_: &Run, c: f32| c <= 3e-4;
-    let runs: Vec<Run> = seeds.iter().map(|&s| hopper_model_based(s)).collect();
-    summary(
+    report(
         "`ModelBased` (inner CMA-ES, fallback coordinate search)",
-        &runs,
+        seeds,
+        hopper_model_based,
         success,
     );
-    let runs: Vec<Run> = seeds
-        .iter()
-        .map(|&s| {
-            hopper_alone(
-                s,
-                hopper_task::coordinate_search(Vector::zeros(), EPISODES as u32).unwrap(),
-            )
-        })
-        .collect();
-    summary("coordinate search alone", &runs, success);
-    let runs: Vec<Run> = seeds
-        .iter()
-        .map(|&s| {
+    report(
+        "coordinate search alone",
+        seeds,
+        |s| {
+            let search = hopper_task::coordinate_search(Vector::zeros(), EPISODES as u32);
+            hopper_alone(s, search.unwrap())
+        },
+        success,
+    );
+    report(
+        "CMA-ES alone (λ = 14, default σ₀ 0.3 of the box)",
+        seeds,
+        |s| {
             let config = CmaesConfig {
                 max_evaluations: EPISODES as u32,
                 ..CmaesConfig::DEFAULT
             };
+            let b = hopper_task::bounds();
             hopper_alone(
                 s,
-                Cmaes::<HP, 14>::try_new(hopper_task::bounds(), Vector::zeros(), config).unwrap(),
+                Cmaes::<HP, 14>::try_new(b, Vector::zeros(), config).unwrap(),
             )
-        })
-        .collect();
-    summary(
-        "CMA-ES alone (λ = 14, default σ₀ 0.3 of the box)",
-        &runs,
+        },
         success,
     );
+}
+
+/// One row: `run` on every seed, if the row is selected.
+fn report(
+    name: &str,
+    seeds: &[u64],
+    run: impl Fn(u64) -> Run,
+    success: impl Fn(&Run, f32) -> bool,
+) {
+    if !row(name) {
+        return;
+    }
+    let runs: Vec<Run> = seeds.iter().map(|&s| run(s)).collect();
+    summary(name, &runs, success);
+}
+
+/// Only the rows whose name contains this (the 4th argument; all by default).
+static ROWS: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+fn row(name: &str) -> bool {
+    ROWS.get().is_none_or(|r| name.contains(r.as_str()))
 }
 
 fn main() {
@@ -631,6 +658,7 @@ fn main() {
     let from: u64 = args.get(1).map_or(1, |a| a.parse().expect("seed"));
     let to: u64 = args.get(2).map_or(10, |a| a.parse().expect("seed"));
     let seeds: Vec<u64> = (from..=to).collect();
+    ROWS.set(args.get(3).cloned().unwrap_or_default()).unwrap();
     match task.as_str() {
         "hopper" => hopper_study(&seeds),
         "arm" => arm_study(&seeds),
