@@ -37,10 +37,11 @@
 //! the candidate-dependent bound the measurements point to.
 //!
 //! # Footprint
-//! For the AUV (N = 18, coordinate-search fallback) the learner is 1,016 bytes and its model
-//! (`RlsModel<6, 3, 14>`) 1,168 bytes: 2,184 bytes kept between episodes. The inner
+//! For the AUV (N = 18, coordinate-search fallback) the learner is 1,040 bytes and its model
+//! (`RlsModel<6, 3, 14>`) 1,168 bytes: 2,208 bytes kept between episodes. The inner
 //! optimizer lives only inside `propose`, on the stack: 4,520 bytes for `Cmaes<18, 12>`.
-//! A proposal costs `inner_evaluations` imagined episodes (240 × 240 ticks on the AUV); its
+//! A proposal costs `inner_evaluations` imagined episodes (240 × 240 ticks on the AUV), and
+//! one more when the fallback proposes (its candidate is predicted too); its
 //! time on a Cortex-M4F has not been measured.
 
 use rand_core::RngCore;
