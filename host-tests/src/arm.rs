@@ -369,3 +369,30 @@ pub fn learn<const K: usize, const E: usize>(
         mean: *cem.mean(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ticks of an episode are the episode `evaluate` scores: the same cost terms, the
+    /// forcing of `forcings`, and states that follow the DMP's semi-implicit Euler step.
+    #[test]
+    fn ticks_are_the_evaluated_episode() {
+        let arm = ViaPointArm::new();
+        let theta = arm.minimum_jerk_theta() + Vector::<PARAMS>::from_fn(|i, _| i as f32);
+        let (states, forcings, terms) = arm.ticks(&theta);
+        assert_eq!(terms, arm.evaluate(&theta));
+        assert_eq!(forcings, arm.forcings(&theta));
+        assert_eq!((states.len(), forcings.len()), (STEPS + 1, STEPS));
+        assert_eq!(&states[0][..LINKS], arm.start());
+        for (k, f) in forcings.iter().enumerate() {
+            for d in 0..LINKS {
+                let (y, z) = (states[k][d], states[k][LINKS + d]);
+                let zd = (ALPHA_Z * (BETA_Z * (arm.goal[d] - y) - z) + f[d]) / DURATION;
+                let z_next = z + zd * DT;
+                assert_eq!(states[k + 1][LINKS + d], z_next);
+                assert_eq!(states[k + 1][d], y + z_next / DURATION * DT);
+            }
+        }
+    }
+}
