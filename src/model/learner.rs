@@ -640,15 +640,23 @@ mod tests {
     }
 
     proptest! {
-        /// Any predictions and any real costs: no panic, proposals inside the bounds, the
-        /// radius inside its range, the best real cost never worse.
+        /// Any predictions, real costs and screen weights: no panic, proposals inside the
+        /// bounds, the radius inside its range, the best real cost never worse, the
+        /// measured prediction error finite.
         #[test]
         fn never_panics(
             predictions in proptest::collection::vec(any::<f32>(), 1..40),
             costs in proptest::collection::vec(any::<f32>(), 1..12),
             seed in any::<u64>(),
+            error_weight in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
+            initial_error in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
         ) {
-            let mut l = learner(ModelBasedConfig { inner_evaluations: 30, ..ModelBasedConfig::DEFAULT });
+            let mut l = learner(ModelBasedConfig {
+                inner_evaluations: 30,
+                error_weight,
+                initial_error,
+                ..ModelBasedConfig::DEFAULT
+            });
             let _ = l.set_reference(costs[0]);
             let mut r = rng(seed);
             let mut best = f32::INFINITY;
@@ -667,6 +675,7 @@ mod tests {
                     prop_assert!(b.cost <= best);
                     best = b.cost;
                 }
+                prop_assert!(l.prediction_error().is_finite() && l.prediction_error() >= 0.0);
             }
         }
     }
