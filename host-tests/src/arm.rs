@@ -126,6 +126,11 @@ impl ViaPointArm {
         }
     }
 
+    /// The start joint angles y₀ (rad): the stretched arm.
+    pub fn start(&self) -> &[f64; LINKS] {
+        &self.start
+    }
+
     /// The goal joint angles g (rad): the arm touches the y axis.
     pub fn goal(&self) -> &[f64; LINKS] {
         &self.goal
@@ -160,7 +165,40 @@ impl ViaPointArm {
     /// Integrates the DMPs with parameters θ (joint d uses θ[d·B..(d+1)·B]) and returns the
     /// cost terms of the episode.
     pub fn evaluate(&self, theta: &Vector<PARAMS>) -> CostTerms {
-        self.simulate(theta, |_, _| {})
+        self.simulate(theta, |_, _, _, _| {})
+    }
+
+    /// One episode's ticks for a model of the arm's DMPs: the state [y, z] (joint angles,
+    /// scaled velocities) at every step, from the start to the end (501 states), and the
+    /// forcing term of each joint at each of the 500 steps, with the episode's cost terms.
+    pub fn ticks(
+        &self,
+        theta: &Vector<PARAMS>,
+    ) -> (Vec<[f64; 2 * LINKS]>, Vec<[f64; LINKS]>, CostTerms) {
+        let mut states = vec![[0.0; 2 * LINKS]];
+        states[0][..LINKS].copy_from_slice(&self.start);
+        let mut forcings = Vec::with_capacity(STEPS);
+        let terms = self.simulate(theta, |_, y, z, forcing| {
+            let mut state = [0.0; 2 * LINKS];
+            state[..LINKS].copy_from_slice(y);
+            state[LINKS..].copy_from_slice(z);
+            states.push(state);
+            forcings.push(*forcing);
+        });
+        (states, forcings, terms)
+    }
+
+    /// The forcing terms of θ at each of the 500 steps: joint d's is (g_d − y₀_d)·φ(t)·θ_d.
+    pub fn forcings(&self, theta: &Vector<PARAMS>) -> Vec<[f64; LINKS]> {
+        self.features
+            .iter()
+            .map(|phi| {
+                std::array::from_fn(|d| {
+                    let w = (0..BASIS).map(|b| phi[b] * f64::from(theta[d * BASIS + b]));
+                    w.sum::<f64>() * (self.goal[d] - self.start[d])
+                })
+            })
+            .collect()
     }
 
     /// J(θ) as the `f32` the optimizers take.
@@ -171,7 +209,7 @@ impl ViaPointArm {
     /// The end-effector path sampled every `every` steps (for plots and checks).
     pub fn end_effector_path(&self, theta: &Vector<PARAMS>, every: usize) -> Vec<[f64; 2]> {
         let mut path = vec![end_effector(&self.start)];
-        self.simulate(theta, |step, angles| {
+        self.simulate(theta, |step, angles, _, _| {
             if step % every.max(1) == 0 {
                 path.push(end_effector(angles));
             }
@@ -179,12 +217,13 @@ impl ViaPointArm {
         path
     }
 
-    /// Semi-implicit Euler integration of the D transformation systems; `visit(step, y)` sees
-    /// the joint angles after each step (step 1 is t = Δt).
+    /// Semi-implicit Euler integration of the D transformation systems; `visit(step, y, z,
+    /// forcing)` sees the joint angles and scaled velocities after each step (step 1 is
+    /// t = Δt) and the forcing terms of that step.
     fn simulate(
         &self,
         theta: &Vector<PARAMS>,
-        mut visit: impl FnMut(usize, &[f64; LINKS]),
+        mut visit: impl FnMut(usize, &[f64; LINKS], &[f64; LINKS], &[f64; LINKS]),
     ) -> CostTerms {
         let weight_sum: f64 = (1..=LINKS).map(|d| (LINKS + 1 - d) as f64).sum();
         let theta: [f64; PARAMS] = std::array::from_fn(|k| f64::from(theta[k]));
@@ -194,6 +233,7 @@ impl ViaPointArm {
         let mut via_distance2 = f64::NAN;
         for (step, phi) in self.features.iter().enumerate() {
             let mut weighted = 0.0;
+            let mut forcings = [0.0; LINKS];
             for d in 0..LINKS {
                 let w = &theta[d * BASIS..(d + 1) * BASIS];
                 let mut forcing = 0.0;
@@ -201,6 +241,7 @@ impl ViaPointArm {
                     forcing += phi[b] * w[b];
                 }
                 forcing *= self.goal[d] - self.start[d];
+                forcings[d] = forcing;
                 let zd = (ALPHA_Z * (BETA_Z * (self.goal[d] - y[d]) - z[d]) + forcing) / DURATION;
                 z[d] += zd * DT;
                 y[d] += z[d] / DURATION * DT;
@@ -209,7 +250,7 @@ impl ViaPointArm {
                 weighted += (LINKS - d) as f64 * ydd * ydd;
             }
             acceleration += weighted / weight_sum * DT;
-            visit(step + 1, &y);
+            visit(step + 1, &y, &z, &forcings);
             if step + 1 == VIA_STEP {
                 let [px, py] = end_effector(&y);
                 via_distance2 = (px - VIA_POINT[0]).powi(2) + (py - VIA_POINT[1]).powi(2);
@@ -327,4 +368,31 @@ pub fn learn<const K: usize, const E: usize>(
         episodes: cem.evaluations(),
         mean: *cem.mean(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ticks of an episode are the episode `evaluate` scores: the same cost terms, the
+    /// forcing of `forcings`, and states that follow the DMP's semi-implicit Euler step.
+    #[test]
+    fn ticks_are_the_evaluated_episode() {
+        let arm = ViaPointArm::new();
+        let theta = arm.minimum_jerk_theta() + Vector::<PARAMS>::from_fn(|i, _| i as f32);
+        let (states, forcings, terms) = arm.ticks(&theta);
+        assert_eq!(terms, arm.evaluate(&theta));
+        assert_eq!(forcings, arm.forcings(&theta));
+        assert_eq!((states.len(), forcings.len()), (STEPS + 1, STEPS));
+        assert_eq!(&states[0][..LINKS], arm.start());
+        for (k, f) in forcings.iter().enumerate() {
+            for d in 0..LINKS {
+                let (y, z) = (states[k][d], states[k][LINKS + d]);
+                let zd = (ALPHA_Z * (BETA_Z * (arm.goal[d] - y) - z) + f[d]) / DURATION;
+                let z_next = z + zd * DT;
+                assert_eq!(states[k + 1][LINKS + d], z_next);
+                assert_eq!(states[k + 1][d], y + z_next / DURATION * DT);
+            }
+        }
+    }
 }

@@ -1,0 +1,570 @@
+//! The library's `model::ModelBased` on the AUV survey in the nominal current and in the
+//! current rotated by 45° (the guard study's, `experiments/tests/guard_auv.rs`): where do
+//! the episodes above 1.2 × the bare cost come from (exploration, the model's choice, the
+//! fallback), and which settings remove them (the pessimistic screen `error_weight`, smaller
+//! exploration, smaller fallback steps).
+//!
+//! ```text
+//! cargo run --release -p experiments --example model_safety_auv -- 101 110   # choose
+//! cargo run --release -p experiments --example model_safety_auv -- 1 10      # report
+//! BUDGET=150 GRID=chosen cargo run --release -p experiments --example model_safety_auv -- 1 10
+//! GRID=chosen cargo run --release -p experiments --example model_safety_auv -- 101 110 trace
+//! ```
+//!
+//! Per seed s and current: the disturbed real AUV (seed s), RNG seed s, 15 real episodes:
+//! episode 1 is the bare PD (θ = 0, cost c₀); then `explorations` episodes with θ uniform in
+//! a small box around zero (half-width `explore` on the weights of the position error,
+//! `explore · velocity_scale` on those of the velocity); then `ModelBased` proposals (inner
+//! `Cmaes<18, 12>`, σ₀ 0.5 of the trust box, 240 imagined episodes; threshold 1.2·c₀, i.e.
+//! margin 0.2·c₀; model `RlsModel<6, 3, 14>` with the bounded-drag features of
+//! `model_auv`, refitted on every episode's ticks) with a coordinate-search fallback from
+//! θ = 0 (initial step `fallback_step` on the position weights, `fallback_step ·
+//! velocity_scale` on the velocity weights). An episode is unsafe when its cost exceeds
+//! 1.2·c₀ (the definition of `model_learner_auv`). "Episodes to 1 m" counts the bare episode;
+//! a seed that never gets within 1 m counts as 16 in the median. Unsafe episodes are
+//! counted twice: above 1.2 × the run's own first (bare) episode, and above 1.2 × the
+//! bare controller's mean over 15 bare episodes on a fresh plant of the same seed (scoring
+//! only: one bare episode is a noisy reference, and in the rotated current the bare PD
+//! itself exceeds 1.2 × its first episode's cost in some repeats).
+//!
+//! The settings: by default the 23 of the findings (`FINDINGS_GRID`), `GRID=chosen` the
+//! chosen one alone, or `GRID="r₀,explore,explorations,velocity scale,fallback step,k,e₀,
+//! ensemble;…"`. Rule for
+//! choosing, written before seeds 1–10 were run: among the settings run on seeds 101–110,
+//! keep those that reach 1 m in at least as many of the 20 runs (10 seeds × 2 currents) as
+//! the previous setting; of those, the fewest unsafe episodes against the bare mean summed
+//! over both currents; then the smaller of the two currents' larger median. If no other
+//! setting qualifies, the previous one stays.
+//! Findings: experiments/findings/model.md.
+
+use ctrl_adapt::controller::Controller;
+use ctrl_adapt::cost::{Shaper, SurveyCost};
+use ctrl_adapt::model::{
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Regressors, RlsModel, Source,
+    imagine_episode,
+};
+use ctrl_adapt::optimizer::{
+    Bounds, Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector,
+};
+use host_tests::auv::{Auv, AuvConfig};
+use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
+use host_tests::median;
+use rand_core::{RngCore, SeedableRng};
+use rand_xoshiro::Xoshiro128PlusPlus;
+
+const DT: f32 = 0.1;
+/// Real episodes per run: 15, or `BUDGET` from the environment (the issue's 150).
+fn budget() -> usize {
+    std::env::var("BUDGET").map_or(15, |b| b.parse().expect("BUDGET"))
+}
+const INNER_BUDGET: u32 = 240;
+const LAYER: f32 = 2.0;
+const TARGET_DEPTH: f32 = 4.8;
+const R: usize = 14;
+
+struct Episode {
+    states: Vec<Vector<6>>,
+    commands: Vec<Vector<3>>,
+    cost: f32,
+}
+
+fn run(theta: &Vector<P>, auv: &mut Auv) -> Episode {
+    let mut controller = auv_task::controller();
+    let mut shaper = SurveyCost::try_new(RADIUS).unwrap();
+    controller.reset();
+    auv.reset();
+    let mut states = vec![policy_state(auv)];
+    let mut commands = Vec::new();
+    for k in 0..auv.steps_per_episode() {
+        let x = *states.last().unwrap();
+        let u = controller.corrected(theta, &x, k as f32 * DT);
+        shaper.observe(&true_error(auv), DT);
+        auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
+        commands.push(u);
+        states.push(policy_state(auv));
+    }
+    Episode {
+        states,
+        commands,
+        cost: shaper.cost(),
+    }
+}
+
+/// Per-weight scale: 1 on the weights of the position error (θ[6a + 0..3]), `velocity` on
+/// those of the velocity (θ[6a + 3..6]).
+fn scale(velocity: f32) -> Vector<P> {
+    Vector::from_fn(|i, _| if i % 6 < 3 { 1.0 } else { velocity })
+}
+
+fn uniform(rng: &mut impl RngCore, half_width: &Vector<P>) -> Vector<P> {
+    Vector::from_fn(|i, _| {
+        let unit = (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+        half_width[i] * (2.0 * unit - 1.0)
+    })
+}
+
+/// The bounded-drag regressors of `model_auv` (R = 14).
+fn features(x: &Vector<6>, _: &Vector<3>) -> Vector<4> {
+    let q = |v: f32| {
+        let v = v.clamp(-0.6, 0.6);
+        v.abs() * v
+    };
+    let layer = if TARGET_DEPTH - x[2] > LAYER {
+        1.0
+    } else {
+        0.0
+    };
+    Vector::<4>::new(layer, q(x[3]), q(x[4]), q(x[5]))
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Settings {
+    radius: f32,
+    explore: f32,
+    explorations: usize,
+    velocity_scale: f32,
+    fallback_step: f32,
+    error_weight: f32,
+    initial_error: f32,
+    /// Models fitted on subsets of the episodes (model j leaves out the episodes whose index
+    /// is j modulo `ensemble`); the prediction is the worst of theirs and the full model's.
+    /// 0: the full model alone.
+    ensemble: usize,
+}
+
+impl Settings {
+    fn name(&self) -> String {
+        format!(
+            "r₀ {}, {}×±{} (v ×{}), fallback step {}, k {}, e₀ {}, ensemble {}",
+            self.radius,
+            self.explorations,
+            self.explore,
+            self.velocity_scale,
+            self.fallback_step,
+            self.error_weight,
+            self.initial_error,
+            self.ensemble
+        )
+    }
+}
+
+/// One learning run: real costs, where each θ came from ('b' bare, 'e' exploration, 'm'
+/// model, 'f' fallback), and the model's prediction of each proposal.
+struct Run {
+    /// The mean cost of 15 bare episodes on a fresh plant of the same seed: the bare
+    /// controller's cost for the second unsafe count (scoring only; the learner never sees it).
+    bare_mean: f32,
+    costs: Vec<f32>,
+    source: Vec<char>,
+    predicted: Vec<Option<f32>>,
+    errors: Vec<f32>,
+}
+
+fn fallback(settings: &Settings) -> CoordinateSearch<P> {
+    let config = CoordinateConfig {
+        max_evaluations: budget() as u32,
+        ..auv_task::local_config(budget() as u32)
+    };
+    CoordinateSearch::try_with_steps(
+        auv_task::bounds(),
+        Vector::zeros(),
+        scale(settings.velocity_scale) * settings.fallback_step,
+        config,
+    )
+    .unwrap()
+}
+
+fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
+    let map = AffineWith::new(features);
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let mut auv = plant(current, seed);
+    // models[0] sees every episode; models[1 + j] leaves out those with index ≡ j.
+    let mut models =
+        vec![RlsModel::<6, 3, R>::try_new(ModelConfig::DEFAULT).unwrap(); 1 + settings.ensemble];
+    let mut episodes = 0usize;
+    let mut fit = |models: &mut Vec<RlsModel<6, 3, R>>, e: &Episode| {
+        for (m, model) in models.iter_mut().enumerate() {
+            if m > 0 && episodes % settings.ensemble == m - 1 {
+                continue;
+            }
+            for (k, u) in e.commands.iter().enumerate() {
+                model
+                    .update(&map, &e.states[k], u, &e.states[k + 1])
+                    .unwrap();
+            }
+        }
+        episodes += 1;
+    };
+    let bare = run(&Vector::zeros(), &mut auv);
+    fit(&mut models, &bare);
+    let start = bare.states[0];
+    // Explorations first, each predicted before it runs by the models fitted so far: their
+    // out-of-sample errors give the learner its initial error when `initial_error` < 0.
+    let width = scale(settings.velocity_scale) * settings.explore;
+    let mut explored = Vec::new();
+    let mut squared = 0.0f32;
+    for _ in 0..settings.explorations {
+        let theta = uniform(&mut rng, &width);
+        let predicted = predict_with(&models, &map, &start, &theta);
+        let e = run(&theta, &mut auv);
+        fit(&mut models, &e);
+        // A prediction that failed counts as an error of the failure cost, 10.
+        let error = predicted.map_or(10.0, |p| (e.cost - p).abs().min(10.0));
+        squared += error * error;
+        explored.push((theta, e.cost, predicted.ok()));
+    }
+    let measured = (squared / settings.explorations.max(1) as f32).sqrt();
+    let config = ModelBasedConfig {
+        initial_radius: settings.radius,
+        margin: 0.2 * bare.cost.abs(),
+        inner_evaluations: INNER_BUDGET,
+        error_weight: settings.error_weight,
+        initial_error: if settings.initial_error < 0.0 {
+            measured
+        } else {
+            settings.initial_error
+        },
+        ..ModelBasedConfig::DEFAULT
+    };
+    let mut learner = ModelBased::try_new(auv_task::bounds(), fallback(&settings), config).unwrap();
+    learner.record(Vector::zeros(), bare.cost).unwrap();
+    learner.set_reference(bare.cost).unwrap();
+    let mut run_ = Run {
+        bare_mean: bare_mean(seed, current),
+        costs: vec![bare.cost],
+        source: vec!['b'],
+        predicted: vec![None],
+        errors: vec![learner.prediction_error()],
+    };
+    for (theta, cost, predicted) in explored {
+        learner.record(theta, cost).unwrap();
+        run_.costs.push(cost);
+        run_.source.push('e');
+        run_.predicted.push(predicted);
+        run_.errors.push(learner.prediction_error());
+    }
+    let inner = |trust: Bounds<P>, centre: Vector<P>| {
+        let config = CmaesConfig {
+            initial_sigma: 0.5,
+            max_evaluations: INNER_BUDGET,
+            ..CmaesConfig::DEFAULT
+        };
+        Cmaes::<P, 12>::try_new(trust, centre, config)
+    };
+    while run_.costs.len() < budget() {
+        let predict = |theta: &Vector<P>| predict_with(&models, &map, &start, theta);
+        let error = learner.prediction_error();
+        let proposal = match learner.propose(&mut rng, inner, predict) {
+            Ok(p) => p,
+            // The fallback is spent and the model's candidate did not pass: stop.
+            Err(_) => break,
+        };
+        let predicted = match proposal.source {
+            Source::Model(c) => Some(c),
+            Source::Fallback => predict(&proposal.theta).ok(),
+        };
+        let e = run(&proposal.theta, &mut auv);
+        fit(&mut models, &e);
+        learner.tell(e.cost).unwrap();
+        run_.source.push(match proposal.source {
+            Source::Model(_) => 'm',
+            Source::Fallback => 'f',
+        });
+        run_.costs.push(e.cost);
+        run_.predicted.push(predicted);
+        run_.errors.push(error);
+    }
+    run_
+}
+
+/// The worst of the models' predicted survey costs of θ from `start`.
+fn predict_with<M: Regressors<6, 3, R>>(
+    models: &[RlsModel<6, 3, R>],
+    map: &M,
+    start: &Vector<6>,
+    theta: &Vector<P>,
+) -> Result<f32, Error> {
+    let mut worst = f32::MIN;
+    for model in models {
+        let mut controller = auv_task::controller();
+        let mut shaper = SurveyCost::try_new(RADIUS).unwrap();
+        let c = imagine_episode(
+            model,
+            map,
+            start,
+            240,
+            DT,
+            &mut controller,
+            theta,
+            &mut shaper,
+            |x| Vector::<3>::new(x[0], x[1], x[2]),
+        )?;
+        worst = worst.max(c);
+    }
+    Ok(worst)
+}
+
+/// The coordinate search alone from θ = 0 (the bare PD is its first candidate).
+fn coordinate(seed: u64, current: AuvConfig, settings: &Settings) -> Run {
+    let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let mut auv = plant(current, seed);
+    let mut search = fallback(settings);
+    let mut costs = Vec::new();
+    while costs.len() < budget() {
+        let Ok(theta) = search.ask(&mut rng) else {
+            break;
+        };
+        let e = run(&theta, &mut auv);
+        search.tell(e.cost).unwrap();
+        costs.push(e.cost);
+    }
+    let n = costs.len();
+    let mut source = vec!['f'; n];
+    source[0] = 'b';
+    Run {
+        bare_mean: bare_mean(seed, current),
+        costs,
+        source,
+        predicted: vec![None; n],
+        errors: vec![0.0; n],
+    }
+}
+
+/// The bare PD run 15 times: how often does the bare controller itself exceed 1.2 × its
+/// first episode's cost?
+fn bare(seed: u64, current: AuvConfig) -> Run {
+    let mut auv = plant(current, seed);
+    let costs: Vec<f32> = (0..budget())
+        .map(|_| run(&Vector::zeros(), &mut auv).cost)
+        .collect();
+    let mut source = vec!['e'; budget()];
+    source[0] = 'b';
+    Run {
+        bare_mean: costs.iter().sum::<f32>() / budget() as f32,
+        costs,
+        source,
+        predicted: vec![None; budget()],
+        errors: vec![0.0; budget()],
+    }
+}
+
+fn bare_mean(seed: u64, current: AuvConfig) -> f32 {
+    bare(seed, current).bare_mean
+}
+
+/// 1.2 × `reference` (for a positive reference; reference + 0.2·|reference| in general).
+fn limit(reference: f32) -> f32 {
+    reference + 0.2 * reference.abs()
+}
+
+/// Episodes from `kind` above 1.2 × the first (bare) episode's cost, or above 1.2 × the
+/// bare controller's mean cost if `mean`.
+fn unsafe_by(runs: &[Run], kind: char, mean: bool) -> usize {
+    runs.iter()
+        .map(|r| {
+            let reference = if mean { r.bare_mean } else { r.costs[0] };
+            r.costs
+                .iter()
+                .zip(&r.source)
+                .filter(|(c, s)| **c > limit(reference) && **s == kind)
+                .count()
+        })
+        .sum()
+}
+
+struct Summary {
+    reached: usize,
+    median: f64,
+    unsafe_total: usize,
+}
+
+fn summary(current: &str, name: &str, runs: &[Run]) -> Summary {
+    let first: Vec<Option<usize>> = runs
+        .iter()
+        .map(|r| r.costs.iter().position(|c| *c < RADIUS).map(|k| k + 1))
+        .collect();
+    let reached = first.iter().flatten().count();
+    let med = median(
+        first
+            .iter()
+            .map(|f| f.unwrap_or(budget() + 1) as f64)
+            .collect(),
+    );
+    let split = |mean: bool| {
+        let (b, e, m, f) = (
+            unsafe_by(runs, 'b', mean),
+            unsafe_by(runs, 'e', mean),
+            unsafe_by(runs, 'm', mean),
+            unsafe_by(runs, 'f', mean),
+        );
+        (
+            b + e + m + f,
+            format!(
+                "{} (bare {b}, explore {e}, model {m}, fallback {f})",
+                b + e + m + f
+            ),
+        )
+    };
+    let (_, first_ref) = split(false);
+    let (unsafe_total, mean_ref) = split(true);
+    let best = median(
+        runs.iter()
+            .map(|r| f64::from(r.costs.iter().copied().fold(f32::INFINITY, f32::min)))
+            .collect(),
+    );
+    let chosen: usize = runs
+        .iter()
+        .map(|r| r.source.iter().filter(|s| **s == 'm').count())
+        .sum();
+    let fell_back: usize = runs
+        .iter()
+        .map(|r| r.source.iter().filter(|s| **s == 'f').count())
+        .sum();
+    let per_seed: Vec<String> = first
+        .iter()
+        .map(|f| f.map_or("–".to_string(), |k| k.to_string()))
+        .collect();
+    println!(
+        "| {current} | {name} | {reached}/{} | {med} | {first_ref} | {mean_ref} | {best:.2} | {chosen} | {fell_back} | {} |",
+        runs.len(),
+        per_seed.join(" ")
+    );
+    Summary {
+        reached,
+        median: med,
+        unsafe_total,
+    }
+}
+
+fn trace(seed: u64, r: &Run) {
+    for (k, c) in r.costs.iter().enumerate() {
+        println!(
+            "seed {seed} ep {:2} {} cost {c:7.3} {} predicted {:>8} error {:.3}",
+            k + 1,
+            r.source[k],
+            if *c > limit(r.bare_mean) {
+                "UNSAFE"
+            } else {
+                "      "
+            },
+            r.predicted[k].map_or("-".into(), |p| format!("{p:.3}")),
+            r.errors[k]
+        );
+    }
+}
+
+fn rotated() -> AuvConfig {
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    AuvConfig {
+        current_direction: [s, s, 0.0],
+        ..AuvConfig::REAL
+    }
+}
+
+/// The settings of the findings' tables, in their order (`r₀,explore,explorations,velocity
+/// scale,fallback step,k,e₀,ensemble`; e₀ = −1: measured on the explorations). The first
+/// is the previous setting of `model_learner_auv`, and the one chosen.
+const FINDINGS_GRID: [&str; 23] = [
+    "0.15,0.05,3,1,0.25,0,0,0",
+    "0.15,0.05,3,1,0.25,1,1,0",
+    "0.15,0.05,3,1,0.25,2,1,0",
+    "0.15,0.05,3,1,0.25,0,0,2",
+    "0.15,0.05,3,1,0.25,1,1,2",
+    "0.15,0.05,3,1,0.25,2,1,2",
+    "0.15,0.05,3,1,0.25,0,0,3",
+    "0.15,0.05,3,1,0.25,1,1,3",
+    "0.15,0.05,3,1,0.25,2,1,3",
+    "0.05,0.05,3,1,0.05,0,0,0",
+    "0.05,0.05,3,1,0.05,1,1,0",
+    "0.05,0.02,3,5,0.05,0,0,0",
+    "0.05,0.02,3,5,0.05,1,1,0",
+    "0.1,0.05,3,1,0.05,0,0,0",
+    "0.1,0.05,3,1,0.05,1,1,0",
+    "0.1,0.02,3,5,0.05,0,0,0",
+    "0.1,0.02,3,5,0.05,1,1,0",
+    "0.15,0.05,3,1,0.25,0.5,-1,0",
+    "0.15,0.05,3,1,0.25,1,-1,0",
+    "0.15,0.05,3,1,0.25,2,-1,0",
+    "0.15,0.05,3,1,0.05,0.5,-1,0",
+    "0.15,0.05,3,1,0.05,1,-1,0",
+    "0.15,0.05,3,1,0.05,2,-1,0",
+];
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let from: u64 = args.first().map_or(1, |a| a.parse().expect("seed"));
+    let to: u64 = args.get(1).map_or(10, |a| a.parse().expect("seed"));
+    let tracing = args.get(2).is_some_and(|a| a == "trace");
+    let seeds: Vec<u64> = (from..=to).collect();
+    let currents = [("nominal", AuvConfig::REAL), ("rotated 45°", rotated())];
+    let previous = Settings {
+        radius: 0.15,
+        explore: 0.05,
+        explorations: 3,
+        velocity_scale: 1.0,
+        fallback_step: 0.25,
+        error_weight: 0.0,
+        initial_error: 0.0,
+        ensemble: 0,
+    };
+    let grid: String = match std::env::var("GRID") {
+        Err(_) => FINDINGS_GRID.join(";"),
+        Ok(g) if g == "chosen" => FINDINGS_GRID[0].to_string(),
+        Ok(g) => g,
+    };
+    let grid: Vec<Settings> = Some(grid)
+        .map(|g| {
+            g.split(';')
+                .map(|s| {
+                    let v: Vec<f32> = s.split(',').map(|x| x.trim().parse().unwrap()).collect();
+                    Settings {
+                        radius: v[0],
+                        explore: v[1],
+                        explorations: v[2] as usize,
+                        velocity_scale: v[3],
+                        fallback_step: v[4],
+                        error_weight: v[5],
+                        initial_error: v[6],
+                        ensemble: v[7] as usize,
+                    }
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    println!("seeds {from}–{to}, {} real episodes per run", budget());
+    println!(
+        "| current | learner | seeds within 1 m | median episodes to 1 m | episodes above 1.2 × the first bare episode's cost | episodes above 1.2 × the bare mean cost | median best cost | episodes chosen by the model | fallback episodes | first episode within 1 m per seed |"
+    );
+    println!("| --- | --- | ---: | ---: | --- | --- | ---: | ---: | ---: | --- |");
+    for (name, current) in currents {
+        let runs: Vec<Run> = seeds.iter().map(|&s| bare(s, current)).collect();
+        summary(name, "bare PD, repeated", &runs);
+        let runs: Vec<Run> = seeds
+            .iter()
+            .map(|&s| coordinate(s, current, &previous))
+            .collect();
+        summary(name, "coordinate search, step 0.25", &runs);
+    }
+    for settings in &grid {
+        let mut total = (0, 0.0f64, 0);
+        for (name, current) in currents {
+            let runs: Vec<Run> = seeds
+                .iter()
+                .map(|&s| learn(s, current, *settings))
+                .collect();
+            let s = summary(name, &format!("`ModelBased`, {}", settings.name()), &runs);
+            total.0 += s.reached;
+            total.1 = total.1.max(s.median);
+            total.2 += s.unsafe_total;
+            if tracing {
+                for (seed, r) in seeds.iter().zip(&runs) {
+                    trace(*seed, r);
+                }
+            }
+        }
+        println!(
+            "  total: within 1 m {}, worst median {}, unsafe {}",
+            total.0, total.1, total.2
+        );
+    }
+}
