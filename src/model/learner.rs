@@ -173,13 +173,16 @@ pub struct ModelBased<F, const N: usize> {
 }
 
 impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
-    /// A learner over `bounds` with the model-free `fallback`, if `config` validates.
+    /// A learner over `bounds` with the model-free `fallback`, if `config` validates and
+    /// the fallback searches the same box ([`Error::InvalidParameter`]`("fallback")`
+    /// otherwise: its candidates become the learner's best θ).
     pub fn try_new(
         bounds: Bounds<N>,
         fallback: F,
         config: ModelBasedConfig,
     ) -> Result<Self, Error> {
         config.validate()?;
+        require(fallback.bounds() == &bounds, "fallback")?;
         Ok(Self {
             config,
             bounds,
@@ -355,6 +358,45 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
     /// The constants.
     pub fn config(&self) -> &ModelBasedConfig {
         &self.config
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<F, const N: usize> ModelBased<F, N>
+where
+    F: Optimizer<N> + crate::record::Persistent,
+{
+    /// The checks of a decoded learner ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (the configuration, the box, the fallback's own checks and its box
+    /// the learner's) and the state's: the radius within its bounds, a finite reference, a
+    /// best real θ inside the box with a finite cost, and a pending proposal inside the box
+    /// (a model candidate with a finite prediction; a fallback candidate the one the
+    /// fallback will be told).
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        use crate::error::require_finite;
+        self.config.validate()?;
+        self.bounds.check_decoded()?;
+        self.fallback.validate()?;
+        require(self.fallback.bounds() == &self.bounds, "fallback")?;
+        require(
+            self.radius >= self.config.min_radius && self.radius <= self.config.max_radius,
+            "radius",
+        )?;
+        require_finite(&self.reference, "reference")?;
+        if let Some(b) = &self.best {
+            self.bounds.check(&b.theta, "best")?;
+            require_finite([&b.cost], "best")?;
+        }
+        if let Some(p) = &self.pending {
+            self.bounds.check(&p.theta, "pending")?;
+            match p.source {
+                Source::Model(predicted) => require_finite([&predicted], "pending")?,
+                Source::Fallback => {
+                    require(self.fallback.pending() == Some(&p.theta), "pending")?;
+                }
+            }
+        }
+        Ok(())
     }
 }
 
