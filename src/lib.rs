@@ -148,6 +148,8 @@ mod guide {
     struct GettingStarted;
     #[doc = include_str!("../docs/choosing-an-optimizer.md")]
     struct ChoosingAnOptimizer;
+    #[doc = include_str!("../docs/model-based.md")]
+    struct ModelBasedGuide;
     #[doc = include_str!("../docs/plants.md")]
     struct Plants;
 }
