@@ -1096,6 +1096,78 @@ mod tests {
         }
     }
 
+    /// One call of the model-based learner's API with arbitrary arguments.
+    #[derive(Debug, Clone)]
+    enum Call {
+        /// `propose`, its predictions cycling through these (a NaN bit pattern as an error).
+        Propose(Vec<f32>),
+        Tell(f32),
+        Record([f32; 2], f32),
+        Reference(f32),
+    }
+
+    fn any_call() -> impl proptest::strategy::Strategy<Value = Call> {
+        use proptest::prelude::*;
+        let f = || {
+            prop_oneof![
+                3 => -10.0f32..10.0,
+                1 => proptest::num::f32::ANY,
+                1 => Just(f32::MAX),
+                1 => Just(f32::NAN),
+            ]
+        };
+        prop_oneof![
+            3 => proptest::collection::vec(f(), 1..6).prop_map(Call::Propose),
+            3 => f().prop_map(Call::Tell),
+            1 => ([f(), f()], f()).prop_map(|(t, c)| Call::Record(t, c)),
+            1 => f().prop_map(Call::Reference),
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(128))]
+
+        /// The learner's propose / tell / record / set_reference in any order with any f32
+        /// (a fuzz of its API): no panic; proposals inside the box; a refused call changes
+        /// nothing; after every call the state saves and loads back bit-identical.
+        #[test]
+        fn model_based_survives_any_call_sequence(
+            calls in proptest::collection::vec(any_call(), 1..24),
+            seed: u64,
+        ) {
+            let mut l = model_based::<2>(bounds(), Vector::zeros());
+            let mut r = rng(seed);
+            for call in &calls {
+                let before = l;
+                let refused = match call {
+                    Call::Propose(predictions) => {
+                        let mut k = 0;
+                        let p = l.propose(&mut r, model_inner, |_| {
+                            k += 1;
+                            let c = predictions[k % predictions.len()];
+                            if c.is_nan() { Err(Error::NonFinite("prediction")) } else { Ok(c) }
+                        });
+                        if let Ok(p) = p {
+                            proptest::prop_assert!(l.fallback().bounds().contains(&p.theta));
+                            proptest::prop_assert_eq!(l.pending(), Some(&p));
+                        }
+                        false
+                    }
+                    Call::Tell(c) => l.tell(*c).is_err(),
+                    Call::Record(t, c) => l.record(Vector::from(*t), *c).is_err(),
+                    Call::Reference(c) => l.set_reference(*c).is_err(),
+                };
+                if refused {
+                    proptest::prop_assert_eq!(l, before);
+                }
+                let record = bytes(&l);
+                let loaded: ModelBased<CoordinateSearch<2>, 2> = load(&record).unwrap();
+                proptest::prop_assert_eq!(loaded, l);
+                proptest::prop_assert_eq!(bytes(&loaded), record);
+            }
+        }
+    }
+
     /// Checks: a decoded model or learner whose checksum is right but whose content is not
     /// is refused naming the field: a NaN or too large variance, an asymmetric covariance,
     /// a radius beyond its bounds, a model candidate with a NaN prediction.
