@@ -7,6 +7,7 @@
 #![doc = concat!(
     "[getting-started]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/getting-started.md\n",
     "[choosing-an-optimizer]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/choosing-an-optimizer.md\n",
+    "[model-based]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/model-based.md\n",
     "[peers-table]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/choosing-an-optimizer.md\n",
     "[tuning]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/tuning.md\n",
     "[safety]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/safety.md\n",

@@ -29,7 +29,7 @@
 //! # The plant model
 //! Optional too ([`EpisodeRunner::with_model`], [`Adapter::with_model`]): every tick of
 //! every episode, the state and the command sent are handed to a
-//! [`TickModel`](crate::model::TickModel), e.g. an [`OnlineModel`](crate::model::OnlineModel)
+//! [`TickModel`], e.g. an [`OnlineModel`](crate::model::OnlineModel)
 //! fitting an [`RlsModel`](crate::model::RlsModel) (see [`model::online`](crate::model::online)).
 //! 6. **Rollback**: after `learning_episodes` learning episodes, when the optimizer stops,
 //!    or on demand ([`Adapter::set_mode`]), the adapter runs the best θ found

@@ -30,8 +30,9 @@
 //! For the AUV (N = 18, coordinate-search fallback) the learner is 1,016 bytes and its model
 //! (`RlsModel<6, 3, 14>`) 1,168 bytes: 2,184 bytes kept between episodes. The inner
 //! optimizer lives only inside `propose`, on the stack: 4,520 bytes for `Cmaes<18, 12>`.
-//! A proposal costs `inner_evaluations` imagined episodes (240 × 240 ticks on the AUV); its
-//! time on a Cortex-M4F has not been measured.
+//! A proposal costs `inner_evaluations` imagined episodes (240 × 240 ticks on the AUV): its
+//! instructions on a Cortex-M4F, counted whole on QEMU by the `bench_model` firmware, are in
+//! `docs/model-based.md`.
 
 use rand_core::RngCore;
 

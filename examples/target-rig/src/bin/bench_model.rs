@@ -78,7 +78,8 @@ impl Regressors<S, A, R> for AuvFeatures {
 }
 
 type Fed = OnlineModel<AuvFeatures, S, A, R>;
-type ModelAdapter = Adapter<CoordinateSearch<P>, auv::AuvController, SurveyCost, P, S, A, Unguarded, Fed>;
+type ModelAdapter =
+    Adapter<CoordinateSearch<P>, auv::AuvController, SurveyCost, P, S, A, Unguarded, Fed>;
 type Learner = ModelBased<CoordinateSearch<P>, P>;
 type Inner = Cmaes<P, 12>;
 

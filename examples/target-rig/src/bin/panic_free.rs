@@ -39,8 +39,7 @@ use ctrl_adapt::controller::{
 };
 use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::model::{
-    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, OnlineModel, RlsModel,
-    imagine_episode,
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, OnlineModel, RlsModel, imagine_episode,
 };
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
@@ -491,16 +490,32 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
     }
     let mut model = *fed.model();
     for _ in 0..200 {
-        let (x, u, next) = (wild_state::<6>(rng), wild_state::<3>(rng), wild_state::<6>(rng));
+        let (x, u, next) = (
+            wild_state::<6>(rng),
+            wild_state::<3>(rng),
+            wild_state::<6>(rng),
+        );
         black_box(model.update(&features, &x, &u, &next).is_ok());
         black_box(model.predict(&features, &x, &u));
     }
-    black_box((model.one_step_error(), model.covariance_resets(), model.validate().is_ok()));
-    black_box((model.weights()[(0, 0)], model.covariance()[(1, 1)], model.config()));
+    black_box((
+        model.one_step_error(),
+        model.covariance_resets(),
+        model.validate().is_ok(),
+    ));
+    black_box((
+        model.weights()[(0, 0)],
+        model.covariance()[(1, 1)],
+        model.config(),
+    ));
     let states: [Vector<6>; 9] = core::array::from_fn(|_| wild_state::<6>(rng));
     let commands: [Vector<3>; 8] = core::array::from_fn(|_| wild_state::<3>(rng));
     black_box(model.episode_error(&features, &states, &commands).is_ok());
-    black_box(model.episode_error(&features, &states[..3], &commands).is_ok());
+    black_box(
+        model
+            .episode_error(&features, &states[..3], &commands)
+            .is_ok(),
+    );
 
     let Ok(fallback) = CoordinateSearch::try_new(
         bounds,
@@ -517,8 +532,16 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
     let Ok(mut learner) = ModelBased::try_new(bounds, fallback, config) else {
         return false;
     };
-    black_box(learner.record(bounds.sample_uniform(rng), wild_cost(rng, &Vector::zeros())).is_ok());
-    black_box(learner.set_reference(wild_cost(rng, &Vector::zeros())).is_ok());
+    black_box(
+        learner
+            .record(bounds.sample_uniform(rng), wild_cost(rng, &Vector::zeros()))
+            .is_ok(),
+    );
+    black_box(
+        learner
+            .set_reference(wild_cost(rng, &Vector::zeros()))
+            .is_ok(),
+    );
     let inner = |trust: Bounds<N>, centre: Vector<N>| {
         let config = CmaesConfig {
             max_evaluations: black_box(24),
@@ -551,7 +574,11 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
         black_box(learner.record(theta, 1.0).is_err());
         black_box(learner.tell(wild_cost(rng, &theta)).is_ok());
         black_box((learner.best(), learner.pending(), learner.radius()));
-        black_box((learner.evaluations(), learner.fallback().best(), learner.config()));
+        black_box((
+            learner.evaluations(),
+            learner.fallback().best(),
+            learner.config(),
+        ));
     }
     true
 }
