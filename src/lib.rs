@@ -7,6 +7,7 @@
 #![doc = concat!(
     "[getting-started]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/getting-started.md\n",
     "[choosing-an-optimizer]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/choosing-an-optimizer.md\n",
+    "[model-based]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/model-based.md\n",
     "[peers-table]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/choosing-an-optimizer.md\n",
     "[tuning]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/tuning.md\n",
     "[safety]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/safety.md\n",
@@ -98,6 +99,8 @@ const _: () = {
     assert_format::<model::Source>();
     assert_format::<model::Proposal<3>>();
     assert_format::<model::ModelBased<CoordinateSearch<3>, 3>>();
+    assert_format::<model::Unmodelled>();
+    assert_format::<model::OnlineModel<model::Affine, 6, 3, 10>>();
     assert_format::<cost::SurveyCost>();
     assert_format::<cost::QuadraticCost<3>>();
     assert_format::<cost::ApexHeightCost>();
@@ -146,6 +149,8 @@ mod guide {
     struct GettingStarted;
     #[doc = include_str!("../docs/choosing-an-optimizer.md")]
     struct ChoosingAnOptimizer;
+    #[doc = include_str!("../docs/model-based.md")]
+    struct ModelBasedGuide;
     #[doc = include_str!("../docs/plants.md")]
     struct Plants;
 }

@@ -4,13 +4,15 @@
 //! Chatzilygeroudis et al., IROS 2017; model-based PID tuning, Doerr et al., ICRA 2017) learns
 //! a model of the plant from every tick the robot runs and searches the policy on the model
 //! between episodes, so that few real episodes are needed and every candidate can be screened
-//! before the robot runs it. This module holds the two pieces a microcontroller can afford:
+//! before the robot runs it. This module holds the pieces a microcontroller can afford:
 //!
 //! * [`RlsModel`]: the next state as the current state plus an increment linear in features
 //!   of the state and the command, x' = x + Wᵀ·z(x, u), fitted every tick by regularised
 //!   recursive least squares with a forgetting factor ([`rls`]);
 //! * [`imagine_episode`] and [`rollout`]: the controller, its correction θ and the cost
 //!   shaper run against the model instead of the plant ([`imagine`]);
+//! * [`OnlineModel`]: the model fed by the adapter from every tick of every episode, a type
+//!   parameter of the runner like the guard ([`Unmodelled`] by default, [`online`]);
 //! * [`ModelBased`]: any optimizer searching the model in a trust region around the best
 //!   real θ, its candidate screened by predicted cost, with a model-free fallback
 //!   ([`learner`]).
@@ -37,10 +39,12 @@
 
 pub mod imagine;
 pub mod learner;
+pub mod online;
 pub mod rls;
 
 pub use imagine::{imagine_episode, rollout};
 pub use learner::{ModelBased, ModelBasedConfig, Proposal, Source};
+pub use online::{OnlineModel, TickModel, Unmodelled};
 pub use rls::{ModelConfig, RlsModel};
 
 use crate::vector::Vector;

@@ -327,6 +327,9 @@ mod shapes {
         PeriodicPd, PeriodicRbf, StateFeatures,
     };
     use crate::cost::{ApexHeightCost, QuadraticCost, SurveyCost};
+    use crate::model::{
+        Affine, ModelBased, OnlineModel, Regressors, RlsModel, TickModel, Unmodelled,
+    };
     use crate::optimizer::{
         AnyOptimizer, Cmaes, ControlledRandomSearch, CoordinateSearch, DiagonalCem, Generation,
         InFlight, LineBo, Optimizer, Racos, Rockstar, Sracos, TwoPhase,
@@ -349,6 +352,50 @@ mod shapes {
         /// limit that exists (the state coordinates are checked by the runner holding it).
         fn validate(&self) -> Result<(), Error> {
             <Self as Supervisor<0>>::validate_decoded(self)
+        }
+    }
+    /// No model adds nothing to a record either.
+    impl Persistent for Unmodelled {
+        const SHAPE: Shape = Shape::EMPTY;
+
+        fn validate(&self) -> Result<(), Error> {
+            Ok(())
+        }
+    }
+    impl Persistent for Affine {
+        const SHAPE: Shape = Shape::new(*b"AFFN", &[]);
+
+        fn validate(&self) -> Result<(), Error> {
+            Ok(())
+        }
+    }
+    impl<const S: usize, const A: usize, const R: usize> Persistent for RlsModel<S, A, R> {
+        const SHAPE: Shape = Shape::new(*b"RLSM", &[S, A, R]);
+
+        /// The configuration, finite weights and errors, and a finite symmetric covariance
+        /// with its diagonal positive and within the bound ([`RlsModel::validate`]).
+        fn validate(&self) -> Result<(), Error> {
+            RlsModel::validate(self)
+        }
+    }
+    /// The regressor map `M` is saved with the model (a closure cannot be: give the features
+    /// a type).
+    impl<M, const S: usize, const A: usize, const R: usize> Persistent for OnlineModel<M, S, A, R>
+    where
+        M: Persistent + Regressors<S, A, R>,
+    {
+        const SHAPE: Shape = Shape::new(*b"ONLM", &[S, A, R]).nest(M::SHAPE);
+
+        fn validate(&self) -> Result<(), Error> {
+            self.map().validate()?;
+            self.validate_decoded()
+        }
+    }
+    impl<F: Persistent + Optimizer<N>, const N: usize> Persistent for ModelBased<F, N> {
+        const SHAPE: Shape = Shape::new(*b"MBAS", &[N]).nest(F::SHAPE);
+
+        fn validate(&self) -> Result<(), Error> {
+            self.check_decoded()
         }
     }
     impl<const N: usize> Persistent for Vector<N> {
@@ -531,35 +578,39 @@ mod shapes {
             self.check_decoded()
         }
     }
-    impl<C, Sh, const P: usize, const S: usize, const A: usize, G> Persistent
-        for EpisodeRunner<C, Sh, P, S, A, G>
+    impl<C, Sh, const P: usize, const S: usize, const A: usize, G, M> Persistent
+        for EpisodeRunner<C, Sh, P, S, A, G, M>
     where
         C: Persistent,
         Sh: Persistent,
         G: Persistent + Supervisor<S>,
+        M: Persistent + TickModel<S, A>,
     {
         const SHAPE: Shape = Shape::new(*b"RUNR", &[P, S, A])
             .nest(C::SHAPE)
             .nest(Sh::SHAPE)
-            .nest(G::SHAPE);
+            .nest(G::SHAPE)
+            .nest(M::SHAPE);
 
         fn validate(&self) -> Result<(), Error> {
             self.check_decoded()
         }
     }
-    impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G> Persistent
-        for Adapter<O, C, Sh, P, S, A, G>
+    impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G, M> Persistent
+        for Adapter<O, C, Sh, P, S, A, G, M>
     where
         O: Persistent + Optimizer<P>,
         C: Persistent,
         Sh: Persistent,
         G: Persistent + Supervisor<S>,
+        M: Persistent + TickModel<S, A>,
     {
         const SHAPE: Shape = Shape::new(*b"ADPT", &[P, S, A])
             .nest(O::SHAPE)
             .nest(C::SHAPE)
             .nest(Sh::SHAPE)
-            .nest(G::SHAPE);
+            .nest(G::SHAPE)
+            .nest(M::SHAPE);
 
         fn validate(&self) -> Result<(), Error> {
             self.check_decoded()
@@ -576,6 +627,9 @@ mod tests {
     use rand_xoshiro::Xoshiro128PlusPlus;
 
     use super::*;
+    use crate::model::{
+        Affine, ModelBased, ModelBasedConfig, ModelConfig, OnlineModel, RlsModel, Source, TickModel,
+    };
     use crate::optimizer::{
         AnyOptimizer, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
         CoordinateSearch, CrsConfig, DiagonalCem, LineBo, LineBoConfig, LineDirections, Optimizer,
@@ -867,6 +921,385 @@ mod tests {
                 check_reloads(LineBo::<2, 6>::try_new(bounds, start, config).unwrap(), steps, pending, seed);
             }
         }
+    }
+
+    /// `steps` real episodes of a model-based learner on `bounds` (the first one recorded as
+    /// the bare controller's, at the start): each proposal searched by a CMA-ES on the trust
+    /// box against a "model" that is the real cost slightly off, the real cost noisy from
+    /// the RNG. The events: θ, where it came from and the cost told.
+    /// The real cost of θ in `bounds`: a sphere of the box's unit coordinates.
+    fn unit_cost<const N: usize>(bounds: &Bounds<N>, t: &Vector<N>) -> f32 {
+        let (lower, upper) = (bounds.lower(), bounds.upper());
+        let c: f64 = (0..N)
+            .map(|i| {
+                let u = (f64::from(t[i]) - f64::from(lower[i]))
+                    / (f64::from(upper[i]) - f64::from(lower[i]));
+                (u - 0.3).powi(2)
+            })
+            .sum();
+        c as f32
+    }
+
+    /// The inner search of [`run_model_based`]: a CMA-ES of 16 predictions.
+    fn model_inner<const N: usize>(b: Bounds<N>, start: Vector<N>) -> Result<Cmaes<N, 4>, Error> {
+        let config = CmaesConfig {
+            max_evaluations: 16,
+            ..CmaesConfig::DEFAULT
+        };
+        Cmaes::try_new(b, start, config)
+    }
+
+    /// One proposal of [`run_model_based`]: its "model" is the real cost slightly off.
+    fn model_propose<const N: usize>(
+        l: &mut ModelBased<CoordinateSearch<N>, N>,
+        r: &mut Xoshiro128PlusPlus,
+    ) -> Result<crate::model::Proposal<N>, Error> {
+        let bounds = *l.fallback().bounds();
+        l.propose(r, model_inner, |t| Ok(1.1 * unit_cost(&bounds, t) - 0.01))
+    }
+
+    /// `steps` real episodes of a model-based learner (the first one recorded as the bare
+    /// controller's, at the box's lower corner, and made the screen's reference): each
+    /// proposal searched by [`model_inner`] on the trust box, the real cost noisy from the
+    /// RNG. The events: θ, the cost told and the prediction (`None` from the fallback).
+    fn run_model_based<const N: usize>(
+        l: &mut ModelBased<CoordinateSearch<N>, N>,
+        r: &mut Xoshiro128PlusPlus,
+        steps: usize,
+    ) -> Vec<(Event, Option<u32>)> {
+        let bounds = *l.fallback().bounds();
+        let unit = |t: &Vector<N>| unit_cost(&bounds, t);
+        let mut events = Vec::new();
+        for _ in 0..steps {
+            if l.evaluations() == 0 && l.pending().is_none() {
+                let start = *l.fallback().bounds().lower();
+                let c = unit(&start) + 0.01 * unit_f32(r);
+                l.record(start, c).unwrap();
+                l.set_reference(c).unwrap();
+                events.push((event(&start, c), None));
+                continue;
+            }
+            let Ok(p) = model_propose(l, r) else {
+                break;
+            };
+            let c = unit(&p.theta) + 0.01 * unit_f32(r);
+            l.tell(c).unwrap();
+            let source = match p.source {
+                Source::Model(predicted) => Some(predicted.to_bits()),
+                Source::Fallback => None,
+            };
+            events.push((event(&p.theta, c), source));
+        }
+        events
+    }
+
+    fn model_based<const N: usize>(
+        bounds: Bounds<N>,
+        start: Vector<N>,
+    ) -> ModelBased<CoordinateSearch<N>, N> {
+        let fallback = CoordinateSearch::try_new(bounds, start, CoordinateConfig::DEFAULT).unwrap();
+        let config = ModelBasedConfig {
+            initial_radius: 0.375,
+            inner_evaluations: 16,
+            ..ModelBasedConfig::DEFAULT
+        };
+        ModelBased::try_new(bounds, fallback, config).unwrap()
+    }
+
+    /// The model-based learner resumes bit for bit from a record of it and the RNG, saved
+    /// between episodes and with a proposal pending (a model's candidate or the fallback's).
+    #[test]
+    fn model_based_resumes() {
+        let fresh = model_based::<3>(bounds(), Vector::zeros());
+        let total = 30;
+        let mut reference = fresh;
+        let expected = run_model_based(&mut reference, &mut rng(11), total);
+        assert!(expected.iter().any(|(_, s)| s.is_some()));
+        assert!(expected.iter().skip(1).any(|(_, s)| s.is_none()));
+        for k in [0usize, 1, 2, 7, 20] {
+            for pending in [false, true] {
+                let mut l = fresh;
+                let mut r = rng(11);
+                let mut events = run_model_based(&mut l, &mut r, k);
+                if pending && k > 0 {
+                    model_propose(&mut l, &mut r).unwrap();
+                }
+                let record = bytes(&(l, r.clone()));
+                let (mut l2, mut r2): (ModelBased<CoordinateSearch<3>, 3>, Xoshiro128PlusPlus) =
+                    load(&record).unwrap();
+                assert_eq!(l2, l, "k = {k}");
+                assert_eq!(bytes(&l2), bytes(&l));
+                events.extend(run_model_based(&mut l2, &mut r2, total - events.len()));
+                assert_eq!(events, expected, "k = {k}, pending = {pending}");
+                assert_eq!(bytes(&l2), bytes(&reference), "k = {k}");
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// Any state of the model-based learner reachable through its API saves and loads
+        /// back bit-identical, over boxes ordinary, narrow and very wide, with and without a
+        /// proposal pending.
+        #[test]
+        fn model_based_reloads_on_any_box(
+            (bounds, start) in any_box_and_start::<2>(),
+            steps in 0usize..8,
+            pending: bool,
+            seed: u64,
+        ) {
+            let mut l = model_based(bounds, start);
+            let mut r = rng(seed);
+            run_model_based(&mut l, &mut r, steps);
+            if pending {
+                let _ = model_propose(&mut l, &mut r);
+            }
+            let record = bytes(&l);
+            let loaded: ModelBased<CoordinateSearch<2>, 2> = load(&record).unwrap();
+            proptest::prop_assert_eq!(loaded, l);
+            proptest::prop_assert_eq!(bytes(&loaded), record);
+        }
+
+        /// Any model reachable by fitting ticks (finite, huge or not finite, refused or not)
+        /// saves and loads back bit-identical, alone and fed by an adapter's runner.
+        #[test]
+        fn rls_model_reloads_after_any_ticks(
+            ticks in proptest::collection::vec(proptest::array::uniform5(
+                proptest::prop_oneof![
+                    4 => -10.0f32..10.0,
+                    1 => proptest::num::f32::ANY,
+                    1 => proptest::strategy::Just(f32::MAX),
+                    1 => proptest::strategy::Just(1e20f32),
+                ]), 0..40),
+            forgetting in 0.5f32..=1.0,
+        ) {
+            let config = ModelConfig { forgetting, ..ModelConfig::DEFAULT };
+            let mut model = RlsModel::<2, 1, 4>::try_new(config).unwrap();
+            let mut fed = OnlineModel::new(model, Affine);
+            for (k, t) in ticks.iter().enumerate() {
+                let (x, u) = (Vector::<2>::new(t[0], t[1]), Vector::<1>::new(t[2]));
+                let _ = model.update(&Affine, &x, &u, &Vector::<2>::new(t[3], t[4]));
+                if k % 9 == 0 {
+                    fed.begin();
+                }
+                fed.tick(&x, &u);
+            }
+            let record = bytes(&model);
+            let loaded: RlsModel<2, 1, 4> = load(&record).unwrap();
+            proptest::prop_assert_eq!(loaded, model);
+            proptest::prop_assert_eq!(bytes(&loaded), record);
+            let record = bytes(&fed);
+            let loaded: OnlineModel<Affine, 2, 1, 4> = load(&record).unwrap();
+            proptest::prop_assert_eq!(loaded, fed);
+            proptest::prop_assert_eq!(bytes(&loaded), record);
+        }
+    }
+
+    /// One call of the model-based learner's API with arbitrary arguments.
+    #[derive(Debug, Clone)]
+    enum Call {
+        /// `propose`, its predictions cycling through these (a NaN bit pattern as an error).
+        Propose(Vec<f32>),
+        Tell(f32),
+        Record([f32; 2], f32),
+        Reference(f32),
+    }
+
+    fn any_call() -> impl proptest::strategy::Strategy<Value = Call> {
+        use proptest::prelude::*;
+        let f = || {
+            prop_oneof![
+                3 => -10.0f32..10.0,
+                1 => proptest::num::f32::ANY,
+                1 => Just(f32::MAX),
+                1 => Just(f32::NAN),
+            ]
+        };
+        prop_oneof![
+            3 => proptest::collection::vec(f(), 1..6).prop_map(Call::Propose),
+            3 => f().prop_map(Call::Tell),
+            1 => ([f(), f()], f()).prop_map(|(t, c)| Call::Record(t, c)),
+            1 => f().prop_map(Call::Reference),
+        ]
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(128))]
+
+        /// The learner's propose / tell / record / set_reference in any order with any f32
+        /// (a fuzz of its API): no panic; proposals inside the box; a refused call changes
+        /// nothing; after every call the state saves and loads back bit-identical.
+        #[test]
+        fn model_based_survives_any_call_sequence(
+            calls in proptest::collection::vec(any_call(), 1..24),
+            seed: u64,
+        ) {
+            let mut l = model_based::<2>(bounds(), Vector::zeros());
+            let mut r = rng(seed);
+            for call in &calls {
+                let before = l;
+                let refused = match call {
+                    Call::Propose(predictions) => {
+                        let mut k = 0;
+                        let p = l.propose(&mut r, model_inner, |_| {
+                            k += 1;
+                            let c = predictions[k % predictions.len()];
+                            if c.is_nan() { Err(Error::NonFinite("prediction")) } else { Ok(c) }
+                        });
+                        if let Ok(p) = p {
+                            proptest::prop_assert!(l.fallback().bounds().contains(&p.theta));
+                            proptest::prop_assert_eq!(l.pending(), Some(&p));
+                        }
+                        false
+                    }
+                    Call::Tell(c) => l.tell(*c).is_err(),
+                    Call::Record(t, c) => l.record(Vector::from(*t), *c).is_err(),
+                    Call::Reference(c) => l.set_reference(*c).is_err(),
+                };
+                if refused {
+                    proptest::prop_assert_eq!(l, before);
+                }
+                let record = bytes(&l);
+                let loaded: ModelBased<CoordinateSearch<2>, 2> = load(&record).unwrap();
+                proptest::prop_assert_eq!(loaded, l);
+                proptest::prop_assert_eq!(bytes(&loaded), record);
+            }
+        }
+    }
+
+    /// Checks: a decoded model or learner whose checksum is right but whose content is not
+    /// is refused naming the field: a NaN or too large variance, an asymmetric covariance,
+    /// a radius beyond its bounds, a model candidate with a NaN prediction.
+    #[test]
+    fn decoded_models_and_learners_are_validated() {
+        let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let refused = |forged: Vec<u8>| load::<RlsModel<2, 1, 4>>(&forged).unwrap_err();
+        let record = bytes(&model);
+        // The prior variance 100 is the configuration's, then the diagonal's.
+        assert_eq!(
+            refused(forge_value(&record, 100.0, 1, f32::NAN)),
+            RecordError::Invalid(Error::NonFinite("covariance"))
+        );
+        assert_eq!(
+            refused(forge_value(&record, 100.0, 2, 2e4)),
+            RecordError::Invalid(Error::InvalidParameter("covariance"))
+        );
+        let mut x = Vector::<2>::zeros();
+        for k in 0..20 {
+            let u = Vector::<1>::new(((k * 7) % 5) as f32 - 2.0);
+            let next = Vector::<2>::new(x[0] + 0.1 * x[1], 0.9 * x[1] + 0.2 * u[0]);
+            model.update(&Affine, &x, &u, &next).unwrap();
+            x = next;
+        }
+        let record = bytes(&model);
+        assert_eq!(load::<RlsModel<2, 1, 4>>(&record), Ok(model));
+        let off = model.covariance()[(0, 1)];
+        assert_eq!(
+            refused(forge_value(&record, off, 0, off + 1.0)),
+            RecordError::Invalid(Error::InvalidParameter("covariance"))
+        );
+
+        let mut l = model_based::<2>(bounds(), Vector::zeros());
+        run_model_based(&mut l, &mut rng(4), 3);
+        let p = l
+            .propose(&mut rng(5), model_inner, |t| Ok(t.norm_squared() - 10.0))
+            .unwrap();
+        let Source::Model(predicted) = p.source else {
+            panic!("the model's candidate passes the screen: {p:?}")
+        };
+        let record = bytes(&l);
+        type Learner = ModelBased<CoordinateSearch<2>, 2>;
+        assert_eq!(load::<Learner>(&record), Ok(l));
+        let refused = |forged: Vec<u8>| load::<Learner>(&forged).unwrap_err();
+        // The radius follows the configuration's (its initial value 0.375 there).
+        let radius = l.radius();
+        let nth = if radius == 0.375 { 1 } else { 0 };
+        assert_eq!(
+            refused(forge_value(&record, radius, nth, 5.0)),
+            RecordError::Invalid(Error::InvalidParameter("radius"))
+        );
+        assert_eq!(
+            refused(forge_value(&record, predicted, 0, f32::NAN)),
+            RecordError::Invalid(Error::NonFinite("pending"))
+        );
+    }
+
+    /// An adapter feeding a plant model saves and loads back equal, the model's ticks and
+    /// the running episode's previous tick included, and continues identically; the model
+    /// is part of its shape.
+    #[test]
+    fn an_adapter_with_a_model_reloads() {
+        use crate::controller::{
+            Adapter, AdapterConfig, CorrectedPd, LinearPolicy, Pd, StateFeatures,
+        };
+        use crate::cost::QuadraticCost;
+        type Ctl = CorrectedPd<1, 2, 2, 2, StateFeatures<2>>;
+        type Fed = OnlineModel<Affine, 2, 1, 4>;
+        type Plain = Adapter<CoordinateSearch<2>, Ctl, QuadraticCost<1>, 2, 2, 1>;
+        type Modelled = Adapter<
+            CoordinateSearch<2>,
+            Ctl,
+            QuadraticCost<1>,
+            2,
+            2,
+            1,
+            crate::controller::Unguarded,
+            Fed,
+        >;
+        let pd = Pd::<1>::try_new(Vector::repeat(1.0), Vector::repeat(1.5)).unwrap();
+        let policy = LinearPolicy::try_new(StateFeatures::identity(), Vector::repeat(1.0)).unwrap();
+        let search =
+            CoordinateSearch::try_new(bounds(), Vector::zeros(), CoordinateConfig::DEFAULT)
+                .unwrap();
+        let config = AdapterConfig {
+            dt: 0.1,
+            failure_cost: 100.0,
+            max_faulty_ticks: 0,
+            learning_episodes: 10,
+        };
+        let shaper = QuadraticCost::try_new(Vector::repeat(1.0)).unwrap();
+        let plain: Plain = Adapter::try_new(
+            search,
+            CorrectedPd::new(pd, policy),
+            shaper,
+            config,
+            Vector::zeros(),
+        )
+        .unwrap();
+        let model = OnlineModel::new(RlsModel::try_new(ModelConfig::DEFAULT).unwrap(), Affine);
+        let mut a = plain.with_model::<Fed>(model).unwrap();
+        assert_ne!(
+            <Modelled as Persistent>::SHAPE,
+            <Plain as Persistent>::SHAPE
+        );
+        let mut r = rng(3);
+        let plant =
+            |x: &Vector<2>, u: &Vector<1>| Vector::<2>::new(x[0] - 0.1 * x[1], x[1] + 0.1 * u[0]);
+        let mut x = Vector::<2>::new(1.0, 0.0);
+        for _ in 0..2 {
+            a.begin_episode(&mut r).unwrap();
+            x = Vector::<2>::new(1.0, 0.0);
+            for _ in 0..20 {
+                let u = a.control(&x, &Vector::repeat(x[0]));
+                x = plant(&x, &u);
+            }
+            a.end_episode().unwrap();
+        }
+        // Mid-episode: a previous tick is pending in the model.
+        a.begin_episode(&mut r).unwrap();
+        let u = a.control(&x, &Vector::repeat(x[0]));
+        let x = plant(&x, &u);
+        let record = bytes(&a);
+        let mut loaded: Modelled = load(&record).unwrap();
+        assert_eq!(loaded, a);
+        assert_eq!(loaded.model().model().ticks(), 2 * 19);
+        assert_eq!(
+            loaded.control(&x, &Vector::repeat(x[0])),
+            a.control(&x, &Vector::repeat(x[0]))
+        );
+        assert_eq!(loaded, a);
+        assert_eq!(loaded.model().model().ticks(), 2 * 19 + 1);
     }
 
     /// The case found on a narrow box far from zero: LineBO's normalised start rounded past

@@ -25,6 +25,12 @@
 //!    learned from the bare episodes; on a trip the rest of the episode runs the nominal
 //!    controller and a learning episode is told the
 //!    [tripped cost](super::guard::tripped_cost) (see [`guard`](super::guard)).
+//!
+//! # The plant model
+//! Optional too ([`EpisodeRunner::with_model`], [`Adapter::with_model`]): every tick of
+//! every episode, the state and the command sent are handed to a
+//! [`TickModel`], e.g. an [`OnlineModel`](crate::model::OnlineModel)
+//! fitting an [`RlsModel`](crate::model::RlsModel) (see [`model::online`](crate::model::online)).
 //! 6. **Rollback**: after `learning_episodes` learning episodes, when the optimizer stops,
 //!    or on demand ([`Adapter::set_mode`]), the adapter runs the best θ found
 //!    ([`Mode::Deploy`]) and explores no more. [`Mode::Nominal`] runs the bare controller.
@@ -37,6 +43,7 @@ use super::Controller;
 use super::guard::{Guard, Supervisor, Trip, Unguarded};
 use crate::cost::Shaper;
 use crate::error::{Error, require};
+use crate::model::{TickModel, Unmodelled};
 use crate::optimizer::Optimizer;
 use crate::random::episode_rng;
 use crate::vector::Vector;
@@ -161,7 +168,9 @@ struct Episode<const P: usize> {
 ///
 /// The [`Adapter`] runs its episodes through one of these. Use it on its own to run a θ
 /// computed elsewhere (a host simulation, a checkpoint) or to score a θ again. `G` is the
-/// runtime guard ([`Unguarded`] unless [`EpisodeRunner::with_guard`] added one).
+/// runtime guard ([`Unguarded`] unless [`EpisodeRunner::with_guard`] added one), `M` the
+/// plant model fed every tick ([`Unmodelled`] unless [`EpisodeRunner::with_model`] added
+/// one).
 ///
 /// ```
 /// use ctrl_adapt::controller::{
@@ -185,12 +194,21 @@ struct Episode<const P: usize> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct EpisodeRunner<C, Sh, const P: usize, const S: usize, const A: usize, G = Unguarded> {
+pub struct EpisodeRunner<
+    C,
+    Sh,
+    const P: usize,
+    const S: usize,
+    const A: usize,
+    G = Unguarded,
+    M = Unmodelled,
+> {
     controller: C,
     shaper: Sh,
     config: AdapterConfig,
     episode: Option<Episode<P>>,
     guard: G,
+    model: M,
 }
 
 impl<C, Sh, const P: usize, const S: usize, const A: usize> EpisodeRunner<C, Sh, P, S, A>
@@ -208,16 +226,24 @@ where
             config,
             episode: None,
             guard: Unguarded,
+            model: Unmodelled,
         })
     }
+}
 
+impl<C, Sh, const P: usize, const S: usize, const A: usize, M>
+    EpisodeRunner<C, Sh, P, S, A, Unguarded, M>
+where
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+{
     /// This runner with the runtime `guard` (see [`guard`](super::guard)); between episodes.
     /// Errors if a limit reads a state coordinate beyond `S`, or if the failure cost plus
     /// the guard's tripped-cost span is not a finite number above the failure cost.
     pub fn with_guard<const L: usize, const T: usize>(
         self,
         guard: Guard<L, T>,
-    ) -> Result<EpisodeRunner<C, Sh, P, S, A, Guard<L, T>>, AdapterError> {
+    ) -> Result<EpisodeRunner<C, Sh, P, S, A, Guard<L, T>, M>, AdapterError> {
         if self.episode.is_some() {
             return Err(AdapterError::EpisodeInProgress);
         }
@@ -234,15 +260,44 @@ where
             config: self.config,
             episode: None,
             guard,
+            model: self.model,
         })
     }
 }
 
-impl<C, Sh, const P: usize, const S: usize, const A: usize, G> EpisodeRunner<C, Sh, P, S, A, G>
+impl<C, Sh, const P: usize, const S: usize, const A: usize, G>
+    EpisodeRunner<C, Sh, P, S, A, G, Unmodelled>
+where
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+{
+    /// This runner feeding `model` every tick of every episode (see the [module
+    /// docs](self) and [`model::online`](crate::model::online)); between episodes.
+    pub fn with_model<M: TickModel<S, A>>(
+        self,
+        model: M,
+    ) -> Result<EpisodeRunner<C, Sh, P, S, A, G, M>, AdapterError> {
+        if self.episode.is_some() {
+            return Err(AdapterError::EpisodeInProgress);
+        }
+        Ok(EpisodeRunner {
+            controller: self.controller,
+            shaper: self.shaper,
+            config: self.config,
+            episode: None,
+            guard: self.guard,
+            model,
+        })
+    }
+}
+
+impl<C, Sh, const P: usize, const S: usize, const A: usize, G, M>
+    EpisodeRunner<C, Sh, P, S, A, G, M>
 where
     C: Controller<P, S, A>,
     Sh: Shaper,
     G: Supervisor<S>,
+    M: TickModel<S, A>,
 {
     /// The guard ([`Unguarded`] without one): its counters and envelope.
     pub fn guard(&self) -> &G {
@@ -257,6 +312,19 @@ where
         Ok(&mut self.guard)
     }
 
+    /// The plant model ([`Unmodelled`] without one).
+    pub fn model(&self) -> &M {
+        &self.model
+    }
+
+    /// The plant model, mutable (to reset it); between episodes.
+    pub fn model_mut(&mut self) -> Result<&mut M, AdapterError> {
+        if self.episode.is_some() {
+            return Err(AdapterError::EpisodeInProgress);
+        }
+        Ok(&mut self.model)
+    }
+
     /// Starts an episode that runs `theta` (or, in [`Mode::Nominal`], the bare controller).
     /// The runner does not check `theta` against a box: the [`Adapter`] does.
     pub fn begin_episode(&mut self, theta: Vector<P>, mode: Mode) -> Result<(), AdapterError> {
@@ -266,6 +334,7 @@ where
         self.shaper.reset();
         self.controller.reset();
         self.guard.begin(mode);
+        self.model.begin();
         self.episode = Some(Episode {
             theta,
             mode,
@@ -327,6 +396,7 @@ where
             finite_or(nominal, || self.controller.safe_action())
         };
         episode.ticks = episode.ticks.saturating_add(1);
+        self.model.tick(state, &action);
         action
     }
 
@@ -397,13 +467,24 @@ where
 ///
 /// `O` optimizes θ ∈ R^P; `C` maps a state in R^S to an action in R^A; `Sh` (a cost
 /// [`Shaper`]) scores episodes; `G` is the runtime guard, [`Unguarded`] (no bytes, no
-/// instructions) unless [`Adapter::with_guard`] added a [`Guard`].
+/// instructions) unless [`Adapter::with_guard`] added a [`Guard`]; `M` the plant model fed
+/// every tick, [`Unmodelled`] (no bytes, no instructions) unless [`Adapter::with_model`]
+/// added one.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct Adapter<O, C, Sh, const P: usize, const S: usize, const A: usize, G = Unguarded> {
+pub struct Adapter<
+    O,
+    C,
+    Sh,
+    const P: usize,
+    const S: usize,
+    const A: usize,
+    G = Unguarded,
+    M = Unmodelled,
+> {
     optimizer: O,
-    runner: EpisodeRunner<C, Sh, P, S, A, G>,
+    runner: EpisodeRunner<C, Sh, P, S, A, G, M>,
     mode: Mode,
     initial: Vector<P>,
     learning_episodes: u32,
@@ -435,7 +516,15 @@ where
             learning_episodes: 0,
         })
     }
+}
 
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize, M>
+    Adapter<O, C, Sh, P, S, A, Unguarded, M>
+where
+    O: Optimizer<P>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+{
     /// This adapter with the runtime `guard` (see [`guard`](super::guard) and
     /// [`EpisodeRunner::with_guard`]); between episodes.
     ///
@@ -471,7 +560,7 @@ where
     pub fn with_guard<const L: usize, const T: usize>(
         self,
         guard: Guard<L, T>,
-    ) -> Result<Adapter<O, C, Sh, P, S, A, Guard<L, T>>, AdapterError> {
+    ) -> Result<Adapter<O, C, Sh, P, S, A, Guard<L, T>, M>, AdapterError> {
         Ok(Adapter {
             optimizer: self.optimizer,
             runner: self.runner.with_guard(guard)?,
@@ -482,12 +571,38 @@ where
     }
 }
 
-impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G> Adapter<O, C, Sh, P, S, A, G>
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G>
+    Adapter<O, C, Sh, P, S, A, G, Unmodelled>
+where
+    O: Optimizer<P>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+{
+    /// This adapter feeding `model` every tick of every episode, the bare ones included
+    /// (see [`model::online`](crate::model::online), which has the example); between
+    /// episodes.
+    pub fn with_model<M: TickModel<S, A>>(
+        self,
+        model: M,
+    ) -> Result<Adapter<O, C, Sh, P, S, A, G, M>, AdapterError> {
+        Ok(Adapter {
+            optimizer: self.optimizer,
+            runner: self.runner.with_model(model)?,
+            mode: self.mode,
+            initial: self.initial,
+            learning_episodes: self.learning_episodes,
+        })
+    }
+}
+
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G, M>
+    Adapter<O, C, Sh, P, S, A, G, M>
 where
     O: Optimizer<P>,
     C: Controller<P, S, A>,
     Sh: Shaper,
     G: Supervisor<S>,
+    M: TickModel<S, A>,
 {
     /// Starts an episode and returns the θ it runs. In [`Mode::Learn`] this asks the
     /// optimizer; when the learning budget is spent or the optimizer has stopped, the
@@ -574,6 +689,16 @@ where
     /// The guard, mutable (to clear its envelope); between episodes.
     pub fn guard_mut(&mut self) -> Result<&mut G, AdapterError> {
         self.runner.guard_mut()
+    }
+
+    /// The plant model ([`Unmodelled`] without one).
+    pub fn model(&self) -> &M {
+        self.runner.model()
+    }
+
+    /// The plant model, mutable (to reset it); between episodes.
+    pub fn model_mut(&mut self) -> Result<&mut M, AdapterError> {
+        self.runner.model_mut()
     }
 
     /// Ends the episode: scores it and, when learning, tells the optimizer (the
@@ -669,11 +794,13 @@ where
 }
 
 #[cfg(feature = "serde")]
-impl<C, Sh, const P: usize, const S: usize, const A: usize, G> EpisodeRunner<C, Sh, P, S, A, G>
+impl<C, Sh, const P: usize, const S: usize, const A: usize, G, M>
+    EpisodeRunner<C, Sh, P, S, A, G, M>
 where
     C: crate::record::Persistent,
     Sh: crate::record::Persistent,
     G: Supervisor<S>,
+    M: TickModel<S, A>,
 {
     /// The checks of a decoded runner ([`Persistent::validate`](crate::record::Persistent)):
     /// the configuration, the controller's and the shaper's own, and a running episode's θ
@@ -684,6 +811,7 @@ where
         self.shaper.validate()?;
         self.guard.fit()?;
         self.guard.validate_decoded()?;
+        self.model.validate_decoded()?;
         match &self.episode {
             Some(e) if e.theta.iter().any(|v| !v.is_finite()) => Err(Error::NonFinite("episode")),
             _ => Ok(()),
@@ -692,12 +820,14 @@ where
 }
 
 #[cfg(feature = "serde")]
-impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G> Adapter<O, C, Sh, P, S, A, G>
+impl<O, C, Sh, const P: usize, const S: usize, const A: usize, G, M>
+    Adapter<O, C, Sh, P, S, A, G, M>
 where
     O: Optimizer<P> + crate::record::Persistent,
     C: crate::record::Persistent,
     Sh: crate::record::Persistent,
     G: Supervisor<S>,
+    M: TickModel<S, A>,
 {
     /// The checks of a decoded adapter ([`Persistent::validate`](crate::record::Persistent)):
     /// the constructor's (the runner's and the optimizer's own checks, the initial θ inside

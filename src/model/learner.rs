@@ -41,8 +41,9 @@
 //! (`RlsModel<6, 3, 14>`) 1,168 bytes: 2,208 bytes kept between episodes. The inner
 //! optimizer lives only inside `propose`, on the stack: 4,520 bytes for `Cmaes<18, 12>`.
 //! A proposal costs `inner_evaluations` imagined episodes (240 × 240 ticks on the AUV), and
-//! one more when the fallback proposes (its candidate is predicted too); its
-//! time on a Cortex-M4F has not been measured.
+//! one more when the fallback proposes (its candidate is predicted too): its instructions on
+//! a Cortex-M4F, counted whole on QEMU by the `bench_model` firmware, are in
+//! `docs/model-based.md`.
 
 use rand_core::RngCore;
 
@@ -206,13 +207,16 @@ pub struct ModelBased<F, const N: usize> {
 }
 
 impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
-    /// A learner over `bounds` with the model-free `fallback`, if `config` validates.
+    /// A learner over `bounds` with the model-free `fallback`, if `config` validates and
+    /// the fallback searches the same box ([`Error::InvalidParameter`]`("fallback")`
+    /// otherwise: its candidates become the learner's best θ).
     pub fn try_new(
         bounds: Bounds<N>,
         fallback: F,
         config: ModelBasedConfig,
     ) -> Result<Self, Error> {
         config.validate()?;
+        require(fallback.bounds() == &bounds, "fallback")?;
         Ok(Self {
             config,
             bounds,
@@ -423,6 +427,55 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
     /// The constants.
     pub fn config(&self) -> &ModelBasedConfig {
         &self.config
+    }
+}
+
+#[cfg(feature = "serde")]
+impl<F, const N: usize> ModelBased<F, N>
+where
+    F: Optimizer<N> + crate::record::Persistent,
+{
+    /// The checks of a decoded learner ([`Persistent::validate`](crate::record::Persistent)):
+    /// the constructor's (the configuration, the box, the fallback's own checks and its box
+    /// the learner's) and the state's: the radius within its bounds, a finite reference, a
+    /// best real θ inside the box with a finite cost, and a pending proposal inside the box
+    /// (a model candidate with a finite prediction; a fallback candidate the one the
+    /// fallback will be told), and the prediction-error statistic: a finite, non-negative
+    /// sum, and a pending prediction only beside a pending proposal, finite.
+    pub(crate) fn check_decoded(&self) -> Result<(), Error> {
+        use crate::error::require_finite;
+        self.config.validate()?;
+        self.bounds.check_decoded()?;
+        self.fallback.validate()?;
+        require(self.fallback.bounds() == &self.bounds, "fallback")?;
+        require(
+            self.radius >= self.config.min_radius && self.radius <= self.config.max_radius,
+            "radius",
+        )?;
+        require_finite(&self.reference, "reference")?;
+        if let Some(b) = &self.best {
+            self.bounds.check(&b.theta, "best")?;
+            require_finite([&b.cost], "best")?;
+        }
+        require(
+            self.squared_errors.is_finite() && self.squared_errors >= 0.0,
+            "squared_errors",
+        )?;
+        require(
+            self.pending_prediction
+                .is_none_or(|c| c.is_finite() && self.pending.is_some()),
+            "pending_prediction",
+        )?;
+        if let Some(p) = &self.pending {
+            self.bounds.check(&p.theta, "pending")?;
+            match p.source {
+                Source::Model(predicted) => require_finite([&predicted], "pending")?,
+                Source::Fallback => {
+                    require(self.fallback.pending() == Some(&p.theta), "pending")?;
+                }
+            }
+        }
+        Ok(())
     }
 }
 

@@ -13,6 +13,12 @@
 //!   the AUV `Adapter`'s whole API (`begin_episode`, `control` on finite and non-finite
 //!   states, `end_episode`, `abort_episode`, `set_mode` in every mode, the accessors), with
 //!   the survey reward;
+//! * the plant model and the model-based learner: `RlsModel<6, 3, 14>` with features of its
+//!   own (`update` with wild ticks, `predict`, `episode_error`, `validate`), fed by the AUV
+//!   adapter (`Adapter::with_model`, `OnlineModel`), `imagine_episode` with the AUV
+//!   controller and the survey cost, and `ModelBased<CoordinateSearch<18>, 18>` (`propose`
+//!   with an inner `Cmaes<18, 12>` and predictions that are sometimes NaN or errors,
+//!   `tell` and `record` with wild costs, `set_reference`, the accessors);
 //! * the PIL firmware's path: frame decoding of arbitrary bytes, frame encoding, reading and
 //!   writing over an embedded-io port, the session and the AUV learner (`AuvLearner` with
 //!   `CoordinateSearch<18>`, with `Sracos<18>` and with `LineBo<18, 64>`),
@@ -32,6 +38,9 @@ use ctrl_adapt::controller::{
     Controller as _, CorrectedPd, Derivative, LinearPolicy, Mode, Pd, StateFeatures,
 };
 use ctrl_adapt::cost::{Shaper, SurveyCost};
+use ctrl_adapt::model::{
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, OnlineModel, RlsModel, imagine_episode,
+};
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
     Bounds, CemConfig, Cmaes, CmaesConfig, ControlledRandomSearch, CoordinateConfig,
@@ -61,6 +70,9 @@ fn main() -> ! {
     let mut told = coordinate_search(&mut rng, bounds);
     told += other_optimizers(&mut rng, bounds);
     if !controller_layer(&mut rng) {
+        exit_failure()
+    }
+    if !model_layer(&mut rng, bounds) {
         exit_failure()
     }
     if !pil_session(&mut rng) {
@@ -433,6 +445,141 @@ fn controller_layer(rng: &mut Rng) -> bool {
     survey.observe(&wild_state::<3>(rng), black_box(0.1));
     survey.reset();
     black_box(survey.cost());
+    true
+}
+
+/// The plant model, fed by the AUV adapter and directly with wild ticks, imagined episodes,
+/// and the model-based learner with wild predictions and costs.
+fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
+    let config = ModelConfig {
+        forgetting: black_box(0.999),
+        ..ModelConfig::DEFAULT
+    };
+    let Ok(model) = RlsModel::<6, 3, 14>::try_new(config) else {
+        return false;
+    };
+    let features = AffineWith::new(|x: &Vector<6>, _: &Vector<3>| {
+        Vector::<4>::new(
+            x[2],
+            libm::fabsf(x[3]) * x[3],
+            libm::fabsf(x[4]) * x[4],
+            libm::fabsf(x[5]) * x[5],
+        )
+    });
+    let Ok(search) = auv::coordinate_search(black_box(400)) else {
+        return false;
+    };
+    let Ok(adapter) = auv::adapter(search, black_box(60)) else {
+        return false;
+    };
+    let Ok(mut adapter) = adapter.with_model(OnlineModel::new(model, features)) else {
+        return false;
+    };
+    for _ in 0..12u32 {
+        black_box(adapter.begin_episode(rng).is_ok());
+        for _ in 0..(rng.next_u32() % 60) {
+            let x = wild_state::<6>(rng);
+            black_box(adapter.control(&x, &Vector::<3>::new(x[0], x[1], x[2])));
+        }
+        black_box(adapter.end_episode().is_ok());
+    }
+    let fed = *adapter.model();
+    black_box((fed.refused(), fed.start(), fed.model().ticks()));
+    if let Ok(m) = adapter.model_mut() {
+        m.model_mut().reset();
+    }
+    let mut model = *fed.model();
+    for _ in 0..200 {
+        let (x, u, next) = (
+            wild_state::<6>(rng),
+            wild_state::<3>(rng),
+            wild_state::<6>(rng),
+        );
+        black_box(model.update(&features, &x, &u, &next).is_ok());
+        black_box(model.predict(&features, &x, &u));
+    }
+    black_box((
+        model.one_step_error(),
+        model.covariance_resets(),
+        model.validate().is_ok(),
+    ));
+    black_box((
+        model.weights()[(0, 0)],
+        model.covariance()[(1, 1)],
+        model.config(),
+    ));
+    let states: [Vector<6>; 9] = core::array::from_fn(|_| wild_state::<6>(rng));
+    let commands: [Vector<3>; 8] = core::array::from_fn(|_| wild_state::<3>(rng));
+    black_box(model.episode_error(&features, &states, &commands).is_ok());
+    black_box(
+        model
+            .episode_error(&features, &states[..3], &commands)
+            .is_ok(),
+    );
+
+    let Ok(fallback) = CoordinateSearch::try_new(
+        bounds,
+        bounds.sample_uniform(rng),
+        CoordinateConfig::DEFAULT,
+    ) else {
+        return false;
+    };
+    let config = ModelBasedConfig {
+        inner_evaluations: black_box(24),
+        margin: black_box(0.5),
+        ..ModelBasedConfig::DEFAULT
+    };
+    let Ok(mut learner) = ModelBased::try_new(bounds, fallback, config) else {
+        return false;
+    };
+    black_box(
+        learner
+            .record(bounds.sample_uniform(rng), wild_cost(rng, &Vector::zeros()))
+            .is_ok(),
+    );
+    black_box(
+        learner
+            .set_reference(wild_cost(rng, &Vector::zeros()))
+            .is_ok(),
+    );
+    let inner = |trust: Bounds<N>, centre: Vector<N>| {
+        let config = CmaesConfig {
+            max_evaluations: black_box(24),
+            ..CmaesConfig::DEFAULT
+        };
+        Cmaes::<N, 12>::try_new(trust, centre, config)
+    };
+    let (mut controller, mut shaper) = (*adapter.controller(), *adapter.shaper());
+    let mut draws = Rng::seed_from_u64(black_box(9));
+    let ticks = black_box(12);
+    for _ in 0..16 {
+        let predict = |theta: &Vector<N>| match draws.next_u32() % 4 {
+            0 => Ok(f32::from_bits(draws.next_u32())),
+            1 => Err(ctrl_adapt::Error::NonFinite("prediction")),
+            _ => imagine_episode(
+                &model,
+                &features,
+                &wild_state::<6>(&mut draws),
+                ticks,
+                black_box(0.1),
+                &mut controller,
+                theta,
+                &mut shaper,
+                |x| Vector::<3>::new(x[0], x[1], x[2]),
+            ),
+        };
+        let proposal = learner.propose(rng, inner, predict);
+        black_box(proposal.is_ok());
+        let theta = proposal.map_or(Vector::zeros(), |p| p.theta);
+        black_box(learner.record(theta, 1.0).is_err());
+        black_box(learner.tell(wild_cost(rng, &theta)).is_ok());
+        black_box((learner.best(), learner.pending(), learner.radius()));
+        black_box((
+            learner.evaluations(),
+            learner.fallback().best(),
+            learner.config(),
+        ));
+    }
     true
 }
 
