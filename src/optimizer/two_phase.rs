@@ -255,6 +255,13 @@ impl<G: Generation<N>, const N: usize> Generation<N> for TwoPhase<G, N> {
         self.local.is_none() && self.global.draws_ahead()
     }
 
+    fn adopts_pending(&self) -> bool {
+        match &self.local {
+            Some(local) => local.adopts_pending(),
+            None => self.global.adopts_pending(),
+        }
+    }
+
     fn draw<R: RngCore + ?Sized>(&mut self, ahead: usize, rng: &mut R) -> Result<Draw<N>, Error> {
         match self.local.as_mut() {
             Some(local) => local.draw(ahead, rng),
