@@ -491,7 +491,7 @@ class CtrlAdaptSearch(Searcher):
         each), and a trial handed to a worker that frees first has Tune stop the one still
         starting, so with trials shorter than a worker's start every later generation ran
         on one worker (measured: all 6 trials of the second generation on one process with
-        2 workers, ``python/bench/pool_workers.py --tune --trace``).
+        2 workers, ``python/bench/tune_trace.py --unwrapped``).
 
         With the trainable wrapped, the searcher answers such a ``suggest`` (a worker free,
         Tune's limit not reached, the optimizer waiting for costs) with a *deferred* trial:
