@@ -6,7 +6,9 @@ simulator), so the figure is the pool's, not a plant's.
 
 With ``--tune``, the same search also through Ray Tune (``CtrlAdaptSearch``, a local Ray
 cluster of as many CPUs as workers, ``reuse_actors=True``, ``max_concurrent_trials`` the
-workers), Ray's start-up apart.
+workers, the trainable wrapped by ``search.trainable``; ``--unwrapped`` without that),
+Ray's start-up apart, with the worker processes that ran trials, the time two trials ran
+at once (the trials' own clocks) and the deferred trials.
 
 At n = 2 CMA-ES's population is λ = 6: each generation is 6 trials, 3 per worker with two.
 Prints a Markdown table with the cores the trials got (their CPU time over the wall time): on
@@ -50,12 +52,27 @@ class Trial:
 
 
 def tune_trial(config):
-    """A Ray trial: the candidate's CPU burn; its config carries the CPU time."""
+    """A Ray trial: the candidate's CPU burn; its config carries the CPU time. Reports the
+    worker process and its own start and end (wall clock)."""
     theta = [config[f"x{i}"] for i in range(config["n"])]
-    return {"cost": burn(theta, config["cpu"])}
+    start = time.time()
+    cost = burn(theta, config["cpu"])
+    return {"cost": cost, "pid": os.getpid(), "start": start, "end": time.time()}
 
 
-def run_tune(n, budget, cpu, workers):
+def overlap(results):
+    """Seconds during which two or more trials ran, from the trials' own clocks."""
+    events = sorted([(r.metrics["start"], 1) for r in results if "start" in r.metrics]
+                    + [(r.metrics["end"], -1) for r in results if "end" in r.metrics])
+    running, total, last = 0, 0.0, None
+    for t, step in events:
+        if running >= 2:
+            total += t - last
+        running, last = running + step, t
+    return total
+
+
+def run_tune(n, budget, cpu, workers, wrapped=True):
     import ray
     from ray import tune
 
@@ -66,18 +83,19 @@ def run_tune(n, budget, cpu, workers):
     ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False)
     try:
         tuner = tune.Tuner(
-            tune_trial,
+            search.trainable(tune_trial) if wrapped else tune_trial,
             param_space={"n": n, "cpu": cpu},
             tune_config=tune.TuneConfig(search_alg=search, num_samples=budget, reuse_actors=True,
                                         max_concurrent_trials=workers),
             run_config=tune.RunConfig(verbose=0, storage_path=tempfile.mkdtemp(prefix="pool-bench-")),
         )
         start = time.perf_counter()
-        tuner.fit()
+        results = tuner.fit()
         wall = time.perf_counter() - start
     finally:
         ray.shutdown()
-    return wall, search
+    pids = len({r.metrics["pid"] for r in results if "pid" in r.metrics})
+    return wall, search, pids, overlap(results)
 
 
 def main(argv=None):
@@ -86,6 +104,8 @@ def main(argv=None):
     p.add_argument("--dimension", type=int, default=2)
     p.add_argument("--generations", type=int, default=2)
     p.add_argument("--tune", action="store_true", help="also through Ray Tune")
+    p.add_argument("--unwrapped", action="store_true",
+                   help="through Tune without search.trainable (no deferred trials)")
     p.add_argument("--sleep", action="store_true",
                    help="trials sleep instead of burning CPU: the pool's overlap without the cores")
     a = p.parse_args(argv)
@@ -110,11 +130,13 @@ def main(argv=None):
     same = rows[0][2].optimizer.save() == rows[1][2].optimizer.save()
     print(f"\nsame final state with 1 and 2 workers: {same}")
     if a.tune:
-        tuned = [(workers, *run_tune(n, budget, a.trial_cpu, workers)) for workers in (1, 2)]
-        print("\n| Ray workers | trials | most in flight | tuning wall time (s) | ratio to 1 worker | best cost |")
-        print("| --- | --- | --- | --- | --- | --- |")
-        for workers, wall, search in tuned:
-            print(f"| {workers} | {search.optimizer.evaluations} | {search.peak_in_flight} | {wall:.2f} | "
+        tuned = [(workers, *run_tune(n, budget, a.trial_cpu, workers, not a.unwrapped)) for workers in (1, 2)]
+        print("\n| Ray workers | trials | most in flight | deferred trials | worker processes | two at once (s) "
+              "| tuning wall time (s) | ratio to 1 worker | best cost |")
+        print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+        for workers, wall, search, pids, both in tuned:
+            print(f"| {workers} | {search.optimizer.evaluations} | {search.peak_in_flight} | "
+                  f"{search.deferred_trials} | {pids} | {both:.2f} | {wall:.2f} | "
                   f"{wall / tuned[0][1]:.2f} | {search.best()[1]:.3e} |")
 
 

@@ -25,12 +25,12 @@ continues from (the board's own episodes then count), and the learning curve is 
     python python/examples/pendulum_pd.py            # 98 trials of 4 × 1,000 steps
     python python/examples/pendulum_pd.py --short    # 28 trials of 1 × 300 steps (CI)
 
-Workers. An episode here takes 12 to 110 ms of CPU (a fall within about 85 steps, up to 1,000
-steps survived; measured on a two-core machine shared with other builds), so a trial of four
-episodes is 0.05 to 0.45 s, not much longer than Ray's own cost per trial: a second worker
-did not pay for itself on that machine, and the default is one. A simulator whose trials
-take seconds (many or long episodes) gains from ``--workers`` up to the CMA-ES population (7
-here); ``ctrl_adapt.pool`` is the cheaper path on one machine.
+Workers. A trial here is four episodes of a small MuJoCo model, short against Ray's own cost
+per trial (python/README.md has the measured wall times with one and two workers): the
+default is one worker. A simulator whose trials take seconds (many or long episodes) gains
+from ``--workers`` up to the CMA-ES population (7 here); the trainable is wrapped by
+``search.trainable`` so that Tune keeps its workers between generations, and
+``ctrl_adapt.pool`` is the cheaper path on one machine.
 
 Options: ``--workers N`` (Ray CPUs, default 1), ``--out DIR`` (default
 ``target/pendulum-pd``), ``--seed S``. Everything is seeded: the initial states, the
@@ -127,7 +127,9 @@ def main(argv=None):
     up = time.perf_counter()
     try:
         tuner = tune.Tuner(
-            trial,
+            # Wrapped: a worker freed at a generation's end waits for the next one's first
+            # candidate instead of being stopped by Tune (see CtrlAdaptSearch.trainable).
+            search.trainable(trial),
             param_space={"steps": steps, "initial_states": initial_states},
             # max_concurrent_trials tells Tune how many trials to keep going (a searcher
             # gets one pending trial otherwise): the workers, within a CMA-ES generation.

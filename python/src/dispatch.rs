@@ -95,11 +95,6 @@ impl Algorithm {
     pub fn parse(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|a| a.name() == name)
     }
-
-    /// Whether it starts from a given θ (the others sample the box first).
-    pub fn takes_start(self) -> bool {
-        !matches!(self, Self::Sracos | Self::Crs | Self::TwoPhase)
-    }
 }
 
 /// The exact Rust type of `algorithm` at dimension `n` (module table).
@@ -187,6 +182,8 @@ pub trait Dynamic: Send + Sync {
     fn status(&self) -> Status;
     /// A candidate and its ticket, `None` while nothing more can be handed out.
     fn suggest(&mut self, rng: &mut Xoshiro128PlusPlus) -> Result<Option<(u32, Vec<f32>)>, Error>;
+    /// The pending candidate (a start) under a ticket ([`InFlight::adopt_pending`]).
+    fn adopt_pending(&mut self) -> Option<(u32, Vec<f32>)>;
     /// The cost of a ticket's candidate.
     fn report(&mut self, ticket: u32, cost: f32) -> Result<(), Error>;
     /// Gives a ticket back: its candidate is handed out again.
@@ -313,6 +310,12 @@ where
             .0
             .step_suggest(rng)?
             .map(|(ticket, theta)| (ticket.get(), theta.as_slice().to_vec())))
+    }
+
+    fn adopt_pending(&mut self) -> Option<(u32, Vec<f32>)> {
+        self.0
+            .adopt_pending()
+            .map(|(ticket, theta)| (ticket.get(), theta.as_slice().to_vec()))
     }
 
     fn report(&mut self, ticket: u32, cost: f32) -> Result<(), Error> {
@@ -451,18 +454,21 @@ where
     fn build(spec: &Spec<'_>) -> Result<Box<dyn Dynamic>, BuildError> {
         let bounds =
             Bounds::<N>::try_new(vector(spec.lower, "lower")?, vector(spec.upper, "upper")?)?;
-        let start = match spec.start {
-            Some(start) => vector::<N>(start, "start")?,
+        // SRACOS, CRS and two-phase sample the box: a given start is their first sample.
+        let first = match spec.start {
+            Some(start) => Some(vector::<N>(start, "start")?),
+            None => None,
+        };
+        let start = match first {
+            Some(start) => start,
             // Halves first: `(lower + upper) * 0.5` overflows f32 for bounds near its
             // limits (the same value otherwise, halving being exact).
             None => bounds.lower() * 0.5 + bounds.upper() * 0.5,
         };
-        if spec.start.is_some() && !spec.algorithm.takes_start() {
-            return Err(BuildError::Config(format!(
-                "{} samples the box first and takes no start",
-                spec.algorithm.name()
-            )));
-        }
+        let crs = |config: CrsConfig| match first {
+            Some(start) => ControlledRandomSearch::<N, CRS>::try_with_start(bounds, config, start),
+            None => ControlledRandomSearch::<N, CRS>::try_new(bounds, config),
+        };
         let json = spec.config;
         Ok(match spec.algorithm {
             Algorithm::Coordinate => held(CoordinateSearch::<N>::try_new(
@@ -470,23 +476,22 @@ where
                 start,
                 configured(CoordinateConfig::DEFAULT, json)?,
             )?),
-            Algorithm::Sracos => held(Sracos::<N>::try_new(
-                bounds,
-                configured(SracosConfig::DEFAULT, json)?,
-            )?),
+            Algorithm::Sracos => {
+                let config = configured(SracosConfig::DEFAULT, json)?;
+                held(match first {
+                    Some(start) => Sracos::<N>::try_with_start(bounds, config, start)?,
+                    None => Sracos::<N>::try_new(bounds, config)?,
+                })
+            }
             Algorithm::Cem => held(DiagonalCem::<N, CEM_SAMPLES, CEM_ELITES>::try_new(
                 bounds,
                 start,
                 configured(CemConfig::DEFAULT, json)?,
             )?),
-            Algorithm::Crs => held(ControlledRandomSearch::<N, CRS>::try_new(
-                bounds,
-                configured(CrsConfig::DEFAULT, json)?,
-            )?),
+            Algorithm::Crs => held(crs(configured(CrsConfig::DEFAULT, json)?)?),
             Algorithm::TwoPhase => {
                 let (global, budget, local) = two_phase_config(json)?;
-                let crs = ControlledRandomSearch::<N, CRS>::try_new(bounds, global)?;
-                held(TwoPhase::try_new(crs, budget, local)?)
+                held(TwoPhase::try_new(crs(global)?, budget, local)?)
             }
             Algorithm::Cmaes => held(Cmaes::<N, LAMBDA>::try_new(
                 bounds,

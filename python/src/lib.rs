@@ -92,6 +92,9 @@ struct PyOptimizer {
     algorithm: Algorithm,
     inner: Box<dyn Dynamic>,
     rng: Xoshiro128PlusPlus,
+    /// The pending candidate was not handed out by this object (a start given to `sracos`,
+    /// `crs` or `two-phase`, or a record's): the next `ask` or `suggest` hands it out.
+    waiting: bool,
 }
 
 #[pymethods]
@@ -131,10 +134,12 @@ impl PyOptimizer {
             BuildError::Library(e) => optimizer_error(e),
             other => optimizer_error(other),
         })?;
+        let waiting = inner.pending().is_some();
         Ok(Self {
             algorithm,
             inner,
             rng: Xoshiro128PlusPlus::seed_from_u64(seed),
+            waiting,
         })
     }
 
@@ -160,6 +165,12 @@ impl PyOptimizer {
     /// `OptimizerError` while a candidate is pending (asked, not yet told: `tell` its cost
     /// first; `suggest`/`report` hold several in flight) or tickets are outstanding.
     fn ask<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        if self.waiting
+            && let Some(theta) = self.inner.pending()
+        {
+            self.waiting = false;
+            return Ok(array(py, &theta));
+        }
         if self.inner.pending().is_some() {
             return Err(optimizer_error(
                 "ask: a candidate is pending (asked, not told): tell its cost first, or use \
@@ -172,7 +183,9 @@ impl PyOptimizer {
 
     /// The pending candidate's cost (rounded to float32, as the firmware holds it).
     fn tell(&mut self, cost: f64) -> PyResult<()> {
-        self.inner.tell(narrow(cost)).map_err(optimizer_error)
+        self.inner.tell(narrow(cost)).map_err(optimizer_error)?;
+        self.waiting = false;
+        Ok(())
     }
 
     /// `(ticket, candidate)`: the next candidate to evaluate in parallel with the others
@@ -182,6 +195,12 @@ impl PyOptimizer {
         &mut self,
         py: Python<'py>,
     ) -> PyResult<Option<(u32, Bound<'py, PyArray1<f64>>)>> {
+        if self.waiting
+            && let Some((ticket, theta)) = self.inner.adopt_pending()
+        {
+            self.waiting = false;
+            return Ok(Some((ticket, array(py, &theta))));
+        }
         let suggested = self.inner.suggest(&mut self.rng).map_err(optimizer_error)?;
         Ok(suggested.map(|(ticket, theta)| (ticket, array(py, &theta))))
     }
@@ -281,10 +300,14 @@ impl PyOptimizer {
             Ok(e) => record_error(e),
             Err(why) => record_error(why),
         })?;
+        // A record's pending candidate (with nothing in flight) goes out with the next ask
+        // or suggest, as the firmware's ask hands it out again.
+        let waiting = inner.pending().is_some() && inner.idle();
         Ok(Self {
             algorithm,
             inner,
             rng: Xoshiro128PlusPlus::seed_from_u64(seed),
+            waiting,
         })
     }
 
@@ -294,6 +317,7 @@ impl PyOptimizer {
             algorithm: self.algorithm,
             inner: dispatch::copy(self.inner.as_ref()).map_err(optimizer_error)?,
             rng: self.rng.clone(),
+            waiting: self.waiting,
         })
     }
 

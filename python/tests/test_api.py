@@ -58,7 +58,7 @@ def test_errors_carry_the_library_messages_and_change_nothing():
         (("coordinate", *box(2)), {"start": np.zeros(3)}, "start"),
         (("coordinate", *box(2)), {"initial_step": -1.0}, "initial_step"),
         (("coordinate", *box(2)), {"sigma": 1.0}, "unknown field `sigma`"),
-        (("crs", *box(2)), {"start": np.zeros(2)}, "takes no start"),
+        (("crs", *box(2)), {"start": np.full(2, 5.0)}, "start"),
         (("coordinate", np.zeros(0), np.zeros(0)), {}, "0 parameters"),
         (("coordinate", *box(65)), {}, "65 parameters"),
     ],

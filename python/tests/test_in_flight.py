@@ -65,7 +65,8 @@ def test_max_in_flight_per_algorithm():
         "sracos": 1,
         "cem": 10,
         "crs": ctrl_adapt.MAX_IN_FLIGHT,  # 190 points to sample, 64 at a time
-        "two-phase": 1,
+        # Its CRS's initial set within the global budget (150 of 190 points), 64 at a time.
+        "two-phase": ctrl_adapt.MAX_IN_FLIGHT,
         "cmaes": 12,
         "rockstar": 2,
         "linebo": 1,
@@ -74,6 +75,22 @@ def test_max_in_flight_per_algorithm():
         opt = new(algorithm, n, 1)
         assert opt.max_in_flight == expected[algorithm], algorithm
         assert opt.capacity == expected[algorithm], algorithm
+
+
+def test_two_phase_hands_out_its_global_set_together_and_hands_over_with_nothing_out():
+    config = {"global_budget": 30}  # within CRS's initial set of 40 points at n = 3
+    par, seq = new("two-phase", 3, 5, **config), new("two-phase", 3, 5, **config)
+    assert par.max_in_flight == 30
+    out = generation(par)
+    assert len(out) == 30
+    for _, theta in out:
+        assert np.array_equal(seq.ask(), theta)
+        seq.tell(cost(theta))
+    for ticket, theta in reversed(out):
+        par.report(ticket, cost(theta))
+    # The hand-over to the local coordinate search: one at a time from there.
+    assert par.save() == seq.save() and par.capacity == 1
+    assert np.array_equal(par.suggest()[1], seq.ask())
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHMS)

@@ -20,6 +20,7 @@ from ray import tune
 from ray.tune.search import Searcher
 
 import ctrl_adapt
+import ctrl_adapt.tune as ctrl_adapt_tune
 from ctrl_adapt.tune import CtrlAdaptSearch, write_record
 from ctrl_adapt import Optimizer
 
@@ -210,6 +211,56 @@ def test_the_concurrency_limit_is_the_optimizers_within_tunes():
     assert s.suggest("t3") is not None
 
 
+class FakeBroker:
+    """Stands in for the searcher's Ray actor: keeps what it is handed for each deferred trial."""
+
+    def __init__(self):
+        self.handed = {}
+        self.put = self
+
+    def remote(self, slot, assigned):
+        self.handed[slot] = assigned
+
+
+def test_with_the_trainable_wrapped_a_free_worker_waits_for_the_next_generation():
+    s = searcher(optimizer("cmaes"))  # λ = 7 at n = 3
+    s.set_max_concurrency(2)
+    s._broker = FakeBroker()
+    bare = searcher(optimizer("cmaes"))
+    bare.set_max_concurrency(2)
+    wrapped = s.trainable(quadratic)
+    assert wrapped.__name__ == "quadratic" and wrapped({"a": 0.5, "b": -0.4, "c": 0.3}) == 0.0
+    alone = optimizer("cmaes")
+    # The first generation, two at a time, until its last candidate is out.
+    for i in range(7):
+        config = s.suggest(f"t{i}")
+        assert config == bare.suggest(f"t{i}") and ctrl_adapt_tune.DEFERRED not in config
+        alone.ask()
+        alone.tell(quadratic(config))
+        if i < 6:
+            s.on_trial_complete(f"t{i}", {"cost": quadratic(config)})
+            bare.on_trial_complete(f"t{i}", {"cost": quadratic(config)})
+    # A worker is free while the generation's last trial runs: unwrapped, Tune gets nothing
+    # (and stops the idle worker); wrapped, a deferred trial that holds the worker.
+    assert bare.suggest("w") is None
+    deferred = s.suggest("w")
+    assert deferred == {ctrl_adapt_tune.DEFERRED: "w"} and s.deferred_trials == 1
+    assert s.suggest("x") is None  # Tune's limit: t6 and w
+    assert s.optimizer.evaluations == 6
+    s.on_trial_complete("t6", {"cost": quadratic(config)})
+    # The generation is complete: the deferred trial gets the next generation's first
+    # candidate, the one ask gives the sequential optimizer.
+    handed, stopped = s._broker.handed["w"]
+    theta = alone.ask()
+    assert stopped is None and [handed[k] for k in "abc"] == list(theta)
+    s.on_trial_complete("w", {"cost": quadratic(handed)})
+    alone.tell(quadratic(handed))
+    assert s.optimizer.save() == alone.save()
+    # A deferred trial that ends before its candidate came (an error) costs nothing.
+    s.on_trial_complete("never", None, error=True)
+    assert s.optimizer.evaluations == 8
+
+
 def test_cmaes_own_penalty_setting_reaches_the_optimizer():
     s = CtrlAdaptSearch(SPACE, algorithm="cmaes", penalty=3.0, metric="cost", mode="min")
     assert s.optimizer.evaluations == 0
@@ -332,6 +383,29 @@ def test_it_learns_on_two_workers_within_the_optimizers_limit(cluster, algorithm
     limit = s.optimizer.max_in_flight
     assert min(limit, 2) <= s.peak_in_flight <= limit
     assert most_at_once(results) <= min(limit, cluster["CPU"])
+
+
+def worker_quadratic(config):
+    time.sleep(0.05)
+    return {"cost": quadratic(config), "pid": os.getpid()}
+
+
+def test_the_wrapped_trainable_runs_the_same_search_with_deferred_trials(cluster, tmp_path):
+    s = searcher(optimizer("cmaes", seed=2))
+    tuner = tune.Tuner(
+        s.trainable(worker_quadratic),
+        tune_config=tune.TuneConfig(search_alg=s, num_samples=14, reuse_actors=True, max_concurrent_trials=2),
+        run_config=tune.RunConfig(storage_path=str(tmp_path), verbose=0),
+    )
+    results = tuner.fit()
+    # Two generations of λ = 7: a worker freed while the first one's last trial ran waited
+    # for the second one's first candidate (a deferred trial), and it ran and was reported.
+    assert not results.errors and len(results) == 14
+    assert s.deferred_trials >= 1 and s.optimizer.evaluations == 14
+    alone = optimizer("cmaes", seed=2)
+    for _ in range(14):
+        alone.tell(quadratic(dict(zip("abc", alone.ask()))))
+    assert alone.save() == s.optimizer.save()
 
 
 def failing_once(config):

@@ -135,6 +135,12 @@ macro_rules! any_optimizer {
                 }
             }
 
+            fn adopts_pending(&self) -> bool {
+                match self {
+                    $(Self::$variant(o) => o.adopts_pending(),)+
+                }
+            }
+
             fn draw<R: rand_core::RngCore + ?Sized>(
                 &mut self,
                 ahead: usize,

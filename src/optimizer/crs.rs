@@ -120,6 +120,22 @@ impl<const N: usize, const M: usize> ControlledRandomSearch<N, M> {
         })
     }
 
+    /// As [`Self::try_new`], with `start` (finite, inside `bounds`, else
+    /// [`Error::NonFinite`] / [`Error::OutOfBounds`] naming `"start"`) the first point of
+    /// Step 0 instead of a uniform draw: it is made the pending candidate, so the first `ask`
+    /// returns it (and a record saved at once holds it, in the same format as any pending
+    /// candidate), and its cost is the set's first.
+    pub fn try_with_start(
+        bounds: Bounds<N>,
+        config: CrsConfig,
+        start: Vector<N>,
+    ) -> Result<Self, Error> {
+        bounds.check(&start, "start")?;
+        let mut search = Self::try_new(bounds, config)?;
+        search.ledger.hand_out(start, &bounds);
+        Ok(search)
+    }
+
     /// The configuration.
     pub fn config(&self) -> &CrsConfig {
         &self.config
@@ -292,6 +308,11 @@ impl<const N: usize, const M: usize> Generation<N> for ControlledRandomSearch<N,
 
     fn draws_ahead(&self) -> bool {
         !self.points.is_full()
+    }
+
+    fn adopts_pending(&self) -> bool {
+        // A draw is its candidate alone (`resume` hands θ out again).
+        true
     }
 
     fn draw<R: RngCore + ?Sized>(&mut self, _ahead: usize, rng: &mut R) -> Result<Draw<N>, Error> {

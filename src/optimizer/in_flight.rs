@@ -23,7 +23,8 @@
 //! | [`Cmaes`](super::Cmaes)`<N, L>` | λ = L, a generation |
 //! | [`ControlledRandomSearch`](super::ControlledRandomSearch)`<N, M>` | M while it fills its set (Step 0), then 1 |
 //! | [`Rockstar`](super::Rockstar) | `initial_samples`, then 1 |
-//! | [`CoordinateSearch`](super::CoordinateSearch), [`Sracos`](super::Sracos), [`Racos`](super::Racos), [`LineBo`](super::LineBo), [`TwoPhase`](super::TwoPhase) | 1 |
+//! | [`TwoPhase`](super::TwoPhase)`<G, N>` | G's while the global phase runs (within its budget), then 1 |
+//! | [`CoordinateSearch`](super::CoordinateSearch), [`Sracos`](super::Sracos), [`Racos`](super::Racos), [`LineBo`](super::LineBo) | 1 |
 //!
 //! SRACOS is sequential by design (each candidate is drawn from the model the previous
 //! cost updated). Batch RACOS keeps its model fixed during a batch but refuses a candidate
@@ -151,6 +152,14 @@ pub trait Generation<const N: usize>: Optimizer<N> {
     /// draws ahead) rather than going through `ask`.
     fn draws_ahead(&self) -> bool {
         false
+    }
+
+    /// Whether a candidate left pending by the sequential `ask` (or made pending by a
+    /// constructor, such as a start) can go out under a ticket
+    /// ([`InFlight::adopt_pending`]): its draw is the candidate alone. By default, when
+    /// the optimizer does not draw ahead.
+    fn adopts_pending(&self) -> bool {
+        !self.draws_ahead()
     }
 
     /// The candidate `ahead` places after the next one the sequential `ask` would propose
@@ -303,6 +312,26 @@ impl<O: Generation<N>, const N: usize, const C: usize> InFlight<O, N, C> {
         Ok(Some((ticket, draw.theta)))
     }
 
+    /// The optimizer's pending candidate under a ticket, as [`InFlight::suggest`] hands out
+    /// a candidate: for one made pending before the wrapper took over, such as the start
+    /// of [`ControlledRandomSearch::try_with_start`](super::ControlledRandomSearch::try_with_start)
+    /// or [`Sracos::try_with_start`](super::Sracos::try_with_start). `None` (nothing changed)
+    /// unless the search runs, nothing is in flight, a candidate is pending and the optimizer
+    /// [adopts](Generation::adopts_pending) it; later `suggest`s continue the generation.
+    pub fn adopt_pending(&mut self) -> Option<(Ticket, Vector<N>)> {
+        if self.optimizer.status() != Status::Running
+            || !self.sequential_pending()
+            || !self.optimizer.adopts_pending()
+        {
+            return None;
+        }
+        let theta = *self.optimizer.pending()?;
+        let ticket = self.fresh_ticket();
+        self.slots.push((Draw::of(theta), Slot::Out(ticket))).ok()?;
+        self.next_ticket = ticket.0.wrapping_add(1);
+        Some((ticket, theta))
+    }
+
     /// The cost of `ticket`'s candidate. It reaches the optimizer once every candidate
     /// handed out before it in the generation has its cost (so the result does not depend
     /// on the order of the reports). [`Error::UnknownTicket`] for a ticket not outstanding,
@@ -381,7 +410,7 @@ impl<O: Generation<N>, const N: usize, const C: usize> InFlight<O, N, C> {
     /// the optimizer's, then the slots': no more than the generation's room, each draw
     /// checked by the optimizer, held costs finite and never first (they would have been
     /// told), outstanding tickets distinct, and a pending candidate of the optimizer only
-    /// as the one `ask`-made draw in flight.
+    /// as the first draw in flight, an `ask`-made or adopted one.
     #[cfg(feature = "serde")]
     pub(crate) fn check_decoded(&self) -> Result<(), Error>
     where
@@ -411,7 +440,7 @@ impl<O: Generation<N>, const N: usize, const C: usize> InFlight<O, N, C> {
             }
         }
         let consistent = match (self.optimizer.pending(), self.slots.first()) {
-            (Some(p), Some((draw, _))) => !self.optimizer.draws_ahead() && *p == draw.theta,
+            (Some(p), Some((draw, _))) => self.optimizer.adopts_pending() && *p == draw.theta,
             (Some(_), None) => true,
             (None, Some(_)) => self.optimizer.draws_ahead(),
             (None, None) => true,
@@ -469,7 +498,6 @@ impl<const N: usize> Generation<N> for super::CoordinateSearch<N> {}
 impl<const N: usize, const K: usize, const M: usize> Generation<N> for super::Sracos<N, K, M> {}
 impl<const N: usize, const K: usize, const M: usize> Generation<N> for super::Racos<N, K, M> {}
 impl<const N: usize, const M: usize> Generation<N> for super::LineBo<N, M> {}
-impl<G: Optimizer<N>, const N: usize> Generation<N> for super::TwoPhase<G, N> {}
 
 #[cfg(test)]
 mod tests {
@@ -613,8 +641,8 @@ mod tests {
             .iter()
             .map(|o| InFlight::<_, 3, 64>::new(o.clone()).max_in_flight())
             .collect();
-        // Coordinate, CRS, TwoPhase, SRACOS, CEM, CMA-ES ×2, ROCK*, LineBO ×3.
-        assert_eq!(most, [1, 5, 1, 1, 4, 4, 4, 2, 1, 1, 1]);
+        // Coordinate, CRS, TwoPhase (its CRS), SRACOS, CEM, CMA-ES ×2, ROCK*, LineBO ×3.
+        assert_eq!(most, [1, 5, 5, 1, 4, 4, 4, 2, 1, 1, 1]);
         for o in optimizers {
             let mut flight = InFlight::<_, 3, 64>::new(o);
             assert_eq!(flight.capacity(), flight.max_in_flight());
@@ -656,6 +684,62 @@ mod tests {
         let cem = DiagonalCem::<3, 6>::try_new(b, Vector::zeros(), cfg).unwrap();
         assert_eq!(InFlight::<_, 3, 8>::new(cem.clone()).capacity(), 3);
         assert_eq!(InFlight::<_, 3, 2>::new(cem).capacity(), 2);
+    }
+
+    /// Checks a start given to CRS (and SRACOS, and a two-phase search over such a CRS):
+    /// the first `ask` returns it; a record saved at once loads back equal; under
+    /// `InFlight` it goes out first by `adopt_pending` (not by `suggest`, refused while it
+    /// is pending), the rest of CRS's set follows by `suggest`, and reported in reverse
+    /// order the state is the sequential run's. A start outside the box is refused.
+    #[test]
+    fn a_start_is_the_first_candidate_and_goes_out_under_a_ticket() {
+        use crate::optimizer::{CoordinateConfig, Sracos, TwoPhase};
+        let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
+        let start = Vector::from([0.25, -0.5, 0.75]);
+        assert_eq!(
+            ControlledRandomSearch::<3, 5>::try_with_start(b, CrsConfig::DEFAULT, [2.0; 3].into()),
+            Err(Error::OutOfBounds("start"))
+        );
+        assert_eq!(
+            Sracos::<3>::try_with_start(b, SracosConfig::DEFAULT, [f32::NAN; 3].into()),
+            Err(Error::NonFinite("start"))
+        );
+        let crs =
+            ControlledRandomSearch::<3, 5>::try_with_start(b, CrsConfig::DEFAULT, start).unwrap();
+        let sracos = Sracos::<3>::try_with_start(b, SracosConfig::DEFAULT, start).unwrap();
+        let two = TwoPhase::try_new(crs.clone(), 8, CoordinateConfig::DEFAULT).unwrap();
+        let optimizers: [Any3; 3] = [crs.into(), sracos.into(), two.into()];
+        for optimizer in optimizers {
+            assert_eq!(optimizer.pending(), Some(&start));
+            let mut buf = [0u8; 4096];
+            let bytes = crate::record::save(&optimizer, &mut buf).unwrap();
+            assert_eq!(crate::record::load::<Any3>(bytes).as_ref(), Ok(&optimizer));
+            let mut sequential = optimizer.clone();
+            let mut flight = InFlight::<_, 3, 8>::new(optimizer);
+            let (mut r, mut r_seq) = (rng(3), rng(3));
+            assert_eq!(flight.suggest(&mut r), Err(Error::CandidatePending));
+            let mut out = Vec::new();
+            out.push(flight.adopt_pending().unwrap());
+            assert_eq!(flight.adopt_pending(), None);
+            while let Some(pair) = flight.suggest(&mut r).unwrap() {
+                out.push(pair);
+            }
+            assert_eq!(out.first().map(|(_, t)| *t), Some(start));
+            let mut bytes = [0u8; 4096];
+            let saved = crate::record::save(&flight, &mut bytes).unwrap();
+            assert_eq!(
+                crate::record::load::<InFlight<Any3, 3, 8>>(saved).as_ref(),
+                Ok(&flight)
+            );
+            for (ticket, theta) in out.iter().rev() {
+                flight.report(*ticket, cost(theta)).unwrap();
+            }
+            for (_, theta) in &out {
+                assert_eq!(sequential.ask(&mut r_seq).as_ref(), Ok(theta));
+                sequential.tell(cost(theta)).unwrap();
+            }
+            assert_eq!(flight.optimizer(), &sequential);
+        }
     }
 
     /// Checks the size the docs give: a slot of the wrapper is 8N + 12 bytes (θ, what the

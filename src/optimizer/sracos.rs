@@ -629,6 +629,22 @@ impl<const N: usize, const K: usize, const M: usize> Sracos<N, K, M> {
         })
     }
 
+    /// As [`Self::try_new`], with `start` (finite, inside `bounds`, else
+    /// [`Error::NonFinite`] / [`Error::OutOfBounds`] naming `"start"`) the first sample
+    /// instead of a uniform draw: it is made the pending candidate, so the first `ask`
+    /// returns it (and a record saved at once holds it, in the same format as any pending
+    /// candidate), and it enters the sets like any sample.
+    pub fn try_with_start(
+        bounds: Bounds<N>,
+        config: SracosConfig,
+        start: Vector<N>,
+    ) -> Result<Self, Error> {
+        bounds.check(&start, "start")?;
+        let mut search = Self::try_new(bounds, config)?;
+        search.ledger.hand_out(start, &bounds);
+        Ok(search)
+    }
+
     model_accessors!(
         "The positive set, best first (fewer than `K` during the first samples). Under value \
          suppression the costs of re-evaluated entries are the suppressed ones, so the first \

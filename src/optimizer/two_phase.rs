@@ -24,7 +24,10 @@
 
 use rand_core::RngCore;
 
-use super::{Best, Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Status, Vector};
+use super::{
+    Best, Bounds, CoordinateConfig, CoordinateSearch, Draw, Error, Generation, Optimizer, Status,
+    Vector,
+};
 use crate::error::require;
 
 /// Which phase a [`TwoPhase`] is in.
@@ -41,8 +44,9 @@ pub enum Phase {
 /// A global optimizer `G` for at most `global_budget` evaluations, then a
 /// [`CoordinateSearch`] from its best θ.
 ///
-/// One candidate at a time under [`InFlight`](super::InFlight), whatever its global phase
-/// allows on its own.
+/// Under [`InFlight`](super::InFlight), the global phase's generation goes out together (a
+/// controlled random search's initial set) but never past the global budget, so the
+/// hand-over happens with nothing in flight; the local phase takes one at a time.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -223,6 +227,63 @@ impl<G: Optimizer<N>, const N: usize> Optimizer<N> for TwoPhase<G, N> {
     }
 }
 
+/// While the global phase runs, its room (within the evaluations left of the global budget,
+/// so that no candidate of the global phase is out at the hand-over); after it, the local
+/// coordinate search's (one at a time).
+impl<G: Generation<N>, const N: usize> Generation<N> for TwoPhase<G, N> {
+    fn room(&self) -> usize {
+        match &self.local {
+            Some(local) => local.room(),
+            None => {
+                let left = self.global_budget.saturating_sub(self.global.evaluations());
+                self.global
+                    .room()
+                    .min(usize::try_from(left).unwrap_or(usize::MAX))
+            }
+        }
+    }
+
+    fn most(&self) -> usize {
+        let global = self
+            .global
+            .most()
+            .min(usize::try_from(self.global_budget).unwrap_or(usize::MAX));
+        global.max(1)
+    }
+
+    fn draws_ahead(&self) -> bool {
+        self.local.is_none() && self.global.draws_ahead()
+    }
+
+    fn adopts_pending(&self) -> bool {
+        match &self.local {
+            Some(local) => local.adopts_pending(),
+            None => self.global.adopts_pending(),
+        }
+    }
+
+    fn draw<R: RngCore + ?Sized>(&mut self, ahead: usize, rng: &mut R) -> Result<Draw<N>, Error> {
+        match self.local.as_mut() {
+            Some(local) => local.draw(ahead, rng),
+            None => self.global.draw(ahead, rng),
+        }
+    }
+
+    fn resume(&mut self, draw: &Draw<N>) {
+        match self.local.as_mut() {
+            Some(local) => local.resume(draw),
+            None => self.global.resume(draw),
+        }
+    }
+
+    fn check_draw(&self, draw: &Draw<N>) -> Result<(), Error> {
+        match &self.local {
+            Some(local) => local.check_draw(draw),
+            None => self.global.check_draw(draw),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -318,6 +379,47 @@ mod tests {
             (best.theta - Vector::from([0.6, 0.6])).amax() < 1e-2,
             "{best:?}"
         );
+    }
+
+    /// Checks: under `InFlight` the global phase's initial set goes out together, capped by
+    /// the global budget (3 of CRS's 5 points with a budget of 3, all 5 with 8); reported in
+    /// reverse order, the state is the sequential run's; with the budget of 3 the hand-over
+    /// has happened and the local phase takes one at a time.
+    #[test]
+    fn in_flight_hands_out_the_global_set_within_the_global_budget() {
+        use crate::optimizer::InFlight;
+        let bounds = Bounds::<2>::uniform(-1.0, 1.0).unwrap();
+        let crs = ControlledRandomSearch::<2, 5>::try_new(bounds, CrsConfig::DEFAULT).unwrap();
+        for (budget, first) in [(3, 3), (8, 5)] {
+            let two = TwoPhase::try_new(crs.clone(), budget, CoordinateConfig::DEFAULT).unwrap();
+            let mut sequential = two.clone();
+            let mut flight = InFlight::<_, 2, 8>::new(two);
+            assert_eq!(flight.max_in_flight(), first);
+            let mut rng = Xoshiro128PlusPlus::seed_from_u64(5);
+            let mut rng_sequential = rng.clone();
+            let mut out = heapless::Vec::<_, 8>::new();
+            while let Some(pair) = flight.suggest(&mut rng).unwrap() {
+                out.push(pair).unwrap();
+            }
+            assert_eq!(out.len(), first);
+            for (ticket, theta) in out.iter().rev() {
+                flight.report(*ticket, theta.norm_squared()).unwrap();
+            }
+            for (_, theta) in &out {
+                assert_eq!(sequential.ask(&mut rng_sequential), Ok(*theta));
+                sequential.tell(theta.norm_squared()).unwrap();
+            }
+            assert_eq!(flight.optimizer(), &sequential);
+            let local = if budget == 3 {
+                Phase::Local
+            } else {
+                Phase::Global
+            };
+            assert_eq!(flight.optimizer().phase(), local);
+            if budget == 3 {
+                assert_eq!(flight.capacity(), 1);
+            }
+        }
     }
 
     #[test]

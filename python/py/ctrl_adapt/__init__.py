@@ -52,10 +52,11 @@ class Optimizer:
 
     Arguments: ``algorithm`` (a name from :func:`algorithms`); ``lower``, ``upper`` (the
     bounds, one per parameter); ``start`` (θ⁰ for ``coordinate``, ``cem``, ``cmaes``,
-    ``rockstar`` and ``linebo``; default the box's centre). ``sracos``, ``crs`` and
-    ``two-phase`` refuse ``start``: their first candidates are a uniform sample of the box
-    that their Rust state (the record firmware loads) has no place to seed; evaluate a
-    known θ yourself first if you need its cost. ``seed`` seeds the optimizer's own
+    ``rockstar`` and ``linebo``; default the box's centre). For ``sracos``, ``crs`` and
+    ``two-phase``, which begin with a uniform sample of the box, a ``start`` is their
+    first sample only: the first ``ask`` (or ``suggest``) hands it out, then they sample
+    the box as without it (it is the Rust type's pending candidate, so a record saved
+    before it is asked holds it). ``seed`` seeds the optimizer's own
     xoshiro128++ RNG, as ``Xoshiro128PlusPlus::seed_from_u64`` does in Rust. Keyword
     arguments set fields of the algorithm's Rust configuration (e.g. ``CoordinateConfig``'s
     ``initial_step``, ``max_evaluations``); for ``"two-phase"``: ``global_budget``,

@@ -21,7 +21,10 @@ Example (``episodes`` is your trainable, returning ``{"cost": ...}`` for a confi
     search.write_record("global.rec")   # -> "Cmaes<2, 6>", the type the firmware loads
 
 ``reuse_actors=True`` keeps Ray's cost per trial at a fraction of a second; without it,
-each trial starts a worker process (seconds).
+each trial starts a worker process (seconds). With several workers, wrap the trainable
+(``tune.Tuner(search.trainable(episodes), ...)``): at a generation's end the searcher then
+keeps the idle workers busy waiting for the next generation instead of letting Tune stop
+them (see :meth:`CtrlAdaptSearch.trainable`).
 
 Failed trials. A trial that raised, or whose result lacks the metric or holds a non-finite
 one (NaN, ±inf, or beyond float32), did not measure its candidate. Its candidate is handed out
@@ -39,18 +42,21 @@ Without Ray, :mod:`ctrl_adapt.pool` evaluates generations on a persistent proces
 
 from __future__ import annotations
 
+import asyncio
+import functools
 import logging
 import math
 import os
 import pickle
 import tempfile
+import uuid
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from ray.tune.search import UNDEFINED_METRIC_MODE, UNDEFINED_SEARCH_SPACE, Searcher
 from ray.tune.search.sample import Float, LogUniform, Quantized, Uniform
 from ray.tune.search.variant_generator import parse_spec_vars
-from ray.tune.utils.util import flatten_dict, unflatten_dict
+from ray.tune.utils.util import flatten_dict, merge_dicts, unflatten_dict
 
 import ctrl_adapt
 
@@ -59,7 +65,10 @@ __all__ = ["CtrlAdaptSearch", "write_record"]
 logger = logging.getLogger(__name__)
 
 _F32_MAX = float(np.finfo(np.float32).max)
-_STATE_VERSION = 2
+_STATE_VERSION = 3
+#: The configuration key of a trial started before its candidate exists (see
+#: :meth:`CtrlAdaptSearch.trainable`).
+DEFERRED = "ctrl_adapt_deferred"
 
 #: A search space: each parameter's name (``"a/b"`` for a nested one) and either its
 #: ``(lower, upper)`` bounds or a ``tune.uniform(lower, upper)``; other values are passed
@@ -253,6 +262,27 @@ def _parse_space(space: Space) -> Tuple[List[str], List[float], List[float], Lis
     return names, lower, upper, scales, constants
 
 
+class _Broker:
+    """The Ray actor through which the searcher hands a deferred trial (see
+    :meth:`CtrlAdaptSearch.trainable`) its configuration once the optimizer has a candidate."""
+
+    def __init__(self) -> None:
+        self._ready: Dict[str, Any] = {}
+        self._events: Dict[str, asyncio.Event] = {}
+
+    def _event(self, slot: str) -> asyncio.Event:
+        return self._events.setdefault(slot, asyncio.Event())
+
+    async def put(self, slot: str, assigned: Any) -> None:
+        self._ready[slot] = assigned
+        self._event(slot).set()
+
+    async def take(self, slot: str) -> Any:
+        await self._event(slot).wait()
+        self._events.pop(slot, None)
+        return self._ready.pop(slot)
+
+
 class CtrlAdaptSearch(Searcher):
     """A Ray Tune searcher handing out the candidates of a :class:`ctrl_adapt.Optimizer`.
 
@@ -337,6 +367,12 @@ class CtrlAdaptSearch(Searcher):
         self.evaluated_points: List[Tuple[Dict[str, Any], float]] = []
         #: The most candidates that were out at once.
         self.peak_in_flight = 0
+        #: Trials started before their candidate existed (:meth:`trainable`).
+        self.deferred_trials = 0
+        self._defer = False
+        self._broker_name = f"ctrl_adapt_broker_{uuid.uuid4().hex}"
+        self._broker: Any = None
+        self._deferred: Dict[str, None] = {}
         if space:
             self._set_space(space)
 
@@ -419,7 +455,11 @@ class CtrlAdaptSearch(Searcher):
             raise RuntimeError(
                 UNDEFINED_METRIC_MODE.format(cls=type(self).__name__, metric=self._metric, mode=self._mode)
             )
-        running = len(opt.in_flight) + len(self._point_trials)
+        if self._defer:
+            # Started with the search, not at the first generation's end: a worker process
+            # takes seconds to start, and the deferred trials would wait for it.
+            self._broker_handle()
+        running = len(opt.in_flight) + len(self._point_trials) + len(self._deferred)
         if self._max_concurrent is not None and running >= self._max_concurrent:
             return None
         if self._points:
@@ -430,16 +470,100 @@ class CtrlAdaptSearch(Searcher):
             return unflatten_dict(flat)
         if opt.status != "running":
             return Searcher.FINISHED
-        if len(opt.in_flight) >= opt.max_in_flight:
-            return None
-        handed = opt.suggest()
+        handed = None if self._deferred or len(opt.in_flight) >= opt.max_in_flight else opt.suggest()
         if handed is None:
-            return None
+            return self._defer_trial(trial_id, running)
         ticket, theta = handed
         self._trials[trial_id] = ticket
         self._thetas[ticket] = np.asarray(theta).tobytes()
         self.peak_in_flight = max(self.peak_in_flight, len(opt.in_flight))
         return self._configuration(theta)
+
+    def trainable(self, function: Any) -> Any:
+        """``function`` (a Tune function trainable, ``config -> result``) wrapped so that Tune
+        keeps its workers between generations; pass it to ``tune.Tuner`` instead of
+        ``function``.
+
+        Why. A CMA-ES or CEM generation ends with one trial running and the other workers
+        idle: the optimizer has no candidate until that trial's cost is in. Tune's actor
+        cache (``reuse_actors=True``) keeps one idle worker when no trial is waiting and
+        stops the others; the next generation then waits for new worker processes (seconds
+        each), and a trial handed to a worker that frees first has Tune stop the one still
+        starting, so with trials shorter than a worker's start every later generation ran
+        on one worker (measured: all 6 trials of the second generation on one process with
+        2 workers, ``python/bench/tune_trace.py --unwrapped``).
+
+        With the trainable wrapped, the searcher answers such a ``suggest`` (a worker free,
+        Tune's limit not reached, the optimizer waiting for costs) with a *deferred* trial:
+        its configuration holds the constants and ``ctrl_adapt_deferred`` only, and the
+        wrapper waits, on the worker Tune gave it, until the generation's last cost is in
+        and the searcher hands it the next candidate (through a small Ray actor); it then
+        calls ``function`` with the full configuration. If the optimizer stops meanwhile, the
+        trial returns the metric as NaN without calling ``function`` (and counts as no
+        evaluation). A deferred trial's ``config`` in Tune's results lacks the parameters;
+        :meth:`best`, :attr:`history` and the optimizer hold the candidates."""
+        self._defer = True
+        name = self._broker_name
+
+        @functools.wraps(function)
+        def run(config):
+            slot = config.get(DEFERRED) if isinstance(config, Mapping) else None
+            if slot is None:
+                return function(config)
+            import ray
+
+            assigned, metric = ray.get(ray.get_actor(name).take.remote(slot))
+            if assigned is None:  # the search stopped before a candidate came
+                return {metric or "cost": float("nan"), "ctrl_adapt_skipped": True}
+            rest = {k: v for k, v in config.items() if k != DEFERRED}
+            return function(merge_dicts(rest, assigned))
+
+        return run
+
+    def _defer_trial(self, trial_id: str, running: int) -> Optional[Dict[str, Any]]:
+        """A deferred trial (:meth:`trainable`) for ``trial_id`` when the trainable is
+        wrapped, candidates are in flight (so one will come) and the limit has room."""
+        opt = self._optimizer
+        limit = self._max_concurrent if self._max_concurrent is not None else opt.max_in_flight
+        if not self._defer or not opt.in_flight or running >= limit:
+            return None
+        self._deferred[trial_id] = None
+        self.deferred_trials += 1
+        flat = dict(self._constants)
+        flat[DEFERRED] = trial_id
+        return unflatten_dict(flat)
+
+    def _broker_handle(self) -> Any:
+        """The broker actor of :meth:`trainable`, started (or found by name) on first use."""
+        if self._broker is None:
+            import ray
+
+            self._broker = (
+                ray.remote(num_cpus=0)(_Broker)
+                .options(name=self._broker_name, get_if_exists=True)
+                .remote()
+            )
+        return self._broker
+
+    def _resolve_deferred(self) -> None:
+        """Hands the deferred trials candidates, oldest first, as far as the optimizer has
+        them (or tells them the search has stopped)."""
+        opt = self._optimizer
+        while self._deferred:
+            trial_id = next(iter(self._deferred))
+            if opt.status != "running":
+                assigned = (None, self._metric)
+            else:
+                handed = opt.suggest() if len(opt.in_flight) < opt.max_in_flight else None
+                if handed is None:
+                    return
+                ticket, theta = handed
+                self._trials[trial_id] = ticket
+                self._thetas[ticket] = np.asarray(theta).tobytes()
+                self.peak_in_flight = max(self.peak_in_flight, len(opt.in_flight))
+                assigned = (self._configuration(theta), None)
+            del self._deferred[trial_id]
+            self._broker_handle().put.remote(trial_id, assigned)
 
     def _configuration(self, theta: Sequence[float]) -> Dict[str, Any]:
         flat = dict(self._constants)
@@ -450,6 +574,14 @@ class CtrlAdaptSearch(Searcher):
         return -1.0 if self._mode == "max" else 1.0
 
     def on_trial_complete(self, trial_id: str, result: Optional[Dict] = None, error: bool = False) -> None:
+        if self._deferred.pop(trial_id, 0) is None:  # ended before it had a candidate
+            return
+        try:
+            self._complete(trial_id, result, error)
+        finally:
+            self._resolve_deferred()
+
+    def _complete(self, trial_id: str, result: Optional[Dict], error: bool) -> None:
         if trial_id in self._point_trials:
             point = self._point_trials.pop(trial_id)
             value = None if error or not result else result.get(self._metric)
@@ -542,7 +674,7 @@ class CtrlAdaptSearch(Searcher):
 
     def get_state(self) -> Dict[str, Any]:
         opt = self._optimizer
-        state = {k: v for k, v in self.__dict__.items() if k != "_optimizer"}
+        state = {k: v for k, v in self.__dict__.items() if k not in ("_optimizer", "_broker")}
         state["version"] = _STATE_VERSION
         state["record"] = None if opt is None else opt.save()
         state["evaluations"] = 0 if opt is None else opt.evaluations
@@ -558,6 +690,7 @@ class CtrlAdaptSearch(Searcher):
             raise ValueError("CtrlAdaptSearch: not a checkpoint of this searcher version")
         record, evaluations = state.pop("record"), state.pop("evaluations")
         self.__dict__.update(state)
+        self._broker = None  # found again by name when a deferred trial needs it
         # The RNG is not in the record: a restored search draws from seed + evaluations, so
         # it does not replay the draws it made before the checkpoint.
         self._optimizer = None if record is None else kind.load(record, self._seed + evaluations)
