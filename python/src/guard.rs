@@ -477,7 +477,7 @@ impl PyGuard {
             if low.is_nan() || high.is_nan() {
                 return Err(bad("a bound is NaN (use -inf or inf for no bound)".into()));
             }
-            if !(low <= high) {
+            if low > high {
                 return Err(bad(format!("low {low} is above high {high}")));
             }
             parsed.push(Limit {
@@ -717,4 +717,105 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("GUARD_MAX_STATE", MAX_STATE)?;
     m.add("GUARD_HORIZONS", HORIZONS.to_vec())?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The package's guard is the library's type: its record loads as `Guard<2, 1024>`, and
+    /// it gives the verdicts of that type driven directly through `Supervisor`.
+    #[test]
+    fn the_package_guard_is_the_library_type() {
+        let limits = vec![
+            Limit {
+                source: Source::State(1),
+                low: -0.2,
+                high: 0.2,
+            },
+            Limit {
+                source: Source::Signal(0),
+                low: 0.0,
+                high: 5.0,
+            },
+        ];
+        let config = Config {
+            limits: limits.clone(),
+            horizon: 1000,
+            limit_ticks: 2,
+            envelope_ticks: 2,
+            relative_margin: 0.2,
+            absolute_margin: 0.0,
+            tripped_cost_span: 1.0,
+        };
+        let mut ours = build(&config).unwrap();
+        let mut theirs = Guard::<2, 1024>::try_new(GuardConfig {
+            limits: [limits[0], limits[1]],
+            limit_ticks: 2,
+            envelope_ticks: 2,
+            relative_margin: 0.2,
+            absolute_margin: 0.0,
+            tripped_cost_span: 1.0,
+        })
+        .unwrap();
+        let mut x = 0.3f32;
+        for (episode, mode) in [Mode::Nominal, Mode::Learn, Mode::Learn]
+            .into_iter()
+            .enumerate()
+        {
+            ours.begin(mode);
+            Supervisor::<4>::begin(&mut theirs, mode);
+            let mut running = 0.0;
+            for tick in 0..300u32 {
+                // A deterministic wander, larger in the later episodes.
+                x = (x * 3.7 * (1.0 - x)).clamp(0.01, 0.99);
+                let angle = (x - 0.5) * 0.3 * (episode as f32 + 1.0);
+                running += x * (episode as f32 + 1.0) * 0.01;
+                let state = [0.0, angle, 0.0, 0.0];
+                let mut padded = Vector::<MAX_STATE>::zeros();
+                padded.as_mut_slice()[..4].copy_from_slice(&state);
+                let signal = [x * 6.0];
+                let a = ours.check(mode, tick, &padded, &signal, running);
+                let b = Supervisor::<4>::check(
+                    &mut theirs,
+                    mode,
+                    tick,
+                    &Vector::from(state),
+                    &signal,
+                    || running,
+                );
+                assert_eq!(a, b, "tick {tick} of episode {episode}");
+            }
+            assert_eq!(ours.finish(), Supervisor::<4>::finish(&mut theirs));
+        }
+        let bytes = ours.save().unwrap();
+        let loaded: Guard<2, 1024> = record::load(&bytes).unwrap();
+        assert_eq!(loaded, theirs);
+        assert_eq!(load(&bytes).unwrap().save().unwrap(), bytes);
+    }
+
+    #[test]
+    fn sizes_beyond_the_compiled_ones_are_refused() {
+        let base = Config {
+            limits: vec![],
+            horizon: 0,
+            limit_ticks: 1,
+            envelope_ticks: 1,
+            relative_margin: 0.0,
+            absolute_margin: 0.0,
+            tripped_cost_span: 1.0,
+        };
+        let many = Config {
+            limits: vec![Limit::NONE; MAX_LIMITS + 1],
+            ..base.clone()
+        };
+        assert!(matches!(build(&many), Err(BuildError::Size(_))));
+        let long = Config {
+            horizon: MAX_HORIZON + 1,
+            ..base.clone()
+        };
+        assert!(matches!(build(&long), Err(BuildError::Size(_))));
+        assert_eq!(horizon_for(1000), Some(1024));
+        assert!(build(&base).is_ok());
+    }
 }

@@ -210,7 +210,8 @@ class Guard:
             obs, _ = env.reset(seed=...); running = 0.0
             for t in range(1000):
                 running += stage_cost(obs)
-                if mode == "nominal" or guard.check(obs, cost=running):
+                handed = guard.check(obs, cost=running)  # every tick, bare ones too
+                if handed or mode == "nominal":
                     u = pd(obs)                   # handed back (or a bare episode)
                 else:
                     u = pd(obs) + corr(theta, obs)
