@@ -7,6 +7,7 @@
 //! into Python exceptions carrying the library's messages.
 
 pub mod dispatch;
+pub mod guard;
 
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::create_exception;
@@ -364,5 +365,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_DIMENSION", dispatch::MAX_DIMENSION)?;
     m.add("MAX_IN_FLIGHT", dispatch::IN_FLIGHT)?;
     m.add("FORMAT_VERSION", ctrl_adapt::record::FORMAT_VERSION)?;
+    guard::register(m)?;
     Ok(())
 }

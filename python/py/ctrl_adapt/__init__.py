@@ -24,6 +24,7 @@ import numpy as _np
 from ._native import FORMAT_VERSION, MAX_DIMENSION, MAX_IN_FLIGHT, OptimizerError, RecordError
 from ._native import Optimizer as _Native
 from ._native import algorithms, rust_type
+from .guard import Guard, GuardCounters, GuardError, GuardReport, Limit, Trip
 
 __all__ = [
     "Optimizer",
@@ -36,6 +37,13 @@ __all__ = [
     "MAX_DIMENSION",
     "MAX_IN_FLIGHT",
     "FORMAT_VERSION",
+    # The runtime guard (ctrl_adapt.guard).
+    "Guard",
+    "GuardCounters",
+    "GuardError",
+    "GuardReport",
+    "Limit",
+    "Trip",
 ]
 
 

@@ -10,6 +10,13 @@ MAX_IN_FLIGHT: int
 class OptimizerError(ValueError): ...
 class RecordError(ValueError): ...
 
+from .guard import Guard as Guard
+from .guard import GuardCounters as GuardCounters
+from .guard import GuardError as GuardError
+from .guard import GuardReport as GuardReport
+from .guard import Limit as Limit
+from .guard import Trip as Trip
+
 def algorithms() -> list[str]: ...
 def rust_type(algorithm: str, n: int) -> str: ...
 
