@@ -52,6 +52,8 @@ pub struct Config {
     pub relative_margin: f32,
     /// `GuardConfig::absolute_margin`.
     pub absolute_margin: f32,
+    /// `GuardConfig::margin_taper`.
+    pub margin_taper: f32,
     /// `GuardConfig::tripped_cost_span`.
     pub tripped_cost_span: f32,
 }
@@ -127,6 +129,7 @@ impl<const L: usize, const T: usize> DynGuard for Guard<L, T> {
             envelope_ticks: c.envelope_ticks,
             relative_margin: c.relative_margin,
             absolute_margin: c.absolute_margin,
+            margin_taper: c.margin_taper,
             tripped_cost_span: c.tripped_cost_span,
         }
     }
@@ -191,6 +194,7 @@ fn make<const L: usize, const T: usize>(config: &Config) -> Result<Box<dyn DynGu
         envelope_ticks: config.envelope_ticks,
         relative_margin: config.relative_margin,
         absolute_margin: config.absolute_margin,
+        margin_taper: config.margin_taper,
         tripped_cost_span: config.tripped_cost_span,
     })
     .map_err(BuildError::Library)?;
@@ -445,10 +449,11 @@ impl PyGuard {
 #[pymethods]
 impl PyGuard {
     /// `Guard(limits, horizon, limit_ticks, envelope_ticks, relative_margin,
-    /// absolute_margin, tripped_cost_span)`; `limits` a list of `(source, index, low, high)`
-    /// with `source` `"state"` or `"signal"`.
+    /// absolute_margin, margin_taper, tripped_cost_span)`; `limits` a list of
+    /// `(source, index, low, high)` with `source` `"state"` or `"signal"`.
     #[new]
-    #[pyo3(signature = (limits, horizon, limit_ticks, envelope_ticks, relative_margin, absolute_margin, tripped_cost_span))]
+    #[pyo3(signature = (limits, horizon, limit_ticks, envelope_ticks, relative_margin, absolute_margin, margin_taper, tripped_cost_span))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         limits: Vec<(String, i64, f64, f64)>,
         horizon: i64,
@@ -456,6 +461,7 @@ impl PyGuard {
         envelope_ticks: i64,
         relative_margin: f64,
         absolute_margin: f64,
+        margin_taper: f64,
         tripped_cost_span: f64,
     ) -> PyResult<Self> {
         if limits.len() > MAX_LIMITS {
@@ -495,6 +501,7 @@ impl PyGuard {
             envelope_ticks: count(envelope_ticks, "envelope_ticks")?,
             relative_margin: narrow(relative_margin, "relative_margin")?,
             absolute_margin: narrow(absolute_margin, "absolute_margin")?,
+            margin_taper: narrow(margin_taper, "margin_taper")?,
             tripped_cost_span: narrow(tripped_cost_span, "tripped_cost_span")?,
         };
         build(&config).map(Self::wrap).map_err(guard_error)
@@ -624,7 +631,8 @@ impl PyGuard {
     }
 
     /// `(limits, horizon, limit_ticks, envelope_ticks, relative_margin, absolute_margin,
-    /// tripped_cost_span)` as the guard holds them (float32 values, the compiled horizon).
+    /// margin_taper, tripped_cost_span)` as the guard holds them (float32 values, the
+    /// compiled horizon).
     #[allow(clippy::type_complexity)]
     fn config(
         &self,
@@ -633,6 +641,7 @@ impl PyGuard {
         usize,
         u32,
         u32,
+        f32,
         f32,
         f32,
         f32,
@@ -653,6 +662,7 @@ impl PyGuard {
             c.envelope_ticks,
             c.relative_margin,
             c.absolute_margin,
+            c.margin_taper,
             c.tripped_cost_span,
         )
     }
@@ -746,6 +756,7 @@ mod tests {
             envelope_ticks: 2,
             relative_margin: 0.2,
             absolute_margin: 0.0,
+            margin_taper: 1.0,
             tripped_cost_span: 1.0,
         };
         let mut ours = build(&config).unwrap();
@@ -755,6 +766,7 @@ mod tests {
             envelope_ticks: 2,
             relative_margin: 0.2,
             absolute_margin: 0.0,
+            margin_taper: 1.0,
             tripped_cost_span: 1.0,
         })
         .unwrap();
@@ -803,6 +815,7 @@ mod tests {
             envelope_ticks: 1,
             relative_margin: 0.0,
             absolute_margin: 0.0,
+            margin_taper: 1.0,
             tripped_cost_span: 1.0,
         };
         let many = Config {

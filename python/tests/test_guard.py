@@ -144,6 +144,9 @@ def test_the_tripped_cost_ranks_above_failure_and_by_the_tick_reached():
         ((), {"absolute_margin": float("inf")}, "absolute_margin"),
         ((), {"absolute_margin": 1e300}, "absolute_margin"),
         ((), {"relative_margin": float("nan")}, "relative_margin"),
+        ((), {"margin_taper": -0.1}, "margin_taper"),
+        ((), {"margin_taper": 1.5}, "margin_taper"),
+        ((), {"margin_taper": float("nan")}, "margin_taper"),
         ((), {"tripped_cost_span": 0.0}, "tripped_cost_span"),
         ((), {"tripped_cost_span": float("inf")}, "tripped_cost_span"),
     ],
@@ -152,6 +155,21 @@ def test_bad_configurations_are_guard_errors(args, kwargs, message):
     with pytest.raises(GuardError, match=message):
         Guard(*args, **kwargs)
     assert issubclass(GuardError, ValueError)
+
+
+def test_a_margin_taper_shrinks_the_margins_linearly_to_the_last_tick():
+    # Envelope 4 at each of the 64 ticks; margins 0.5·4 + 1 = 3 at tick 0, a quarter of that
+    # at tick 63, as the library's Guard computes them.
+    g = Guard(horizon=64, relative_margin=0.5, absolute_margin=1.0, margin_taper=0.25)
+    assert g.margin_taper == 0.25
+    g.begin("nominal")
+    for _ in range(64):
+        g.check([0.0], cost=4.0)
+    g.end()
+    t = g.thresholds()
+    assert t[0] == 7.0 and t[63] == 4.75
+    assert np.all(np.diff(t) < 0)
+    assert Guard.load(g.save()).margin_taper == 0.25
 
 
 def test_calls_out_of_order_and_bad_ticks_are_guard_errors_that_change_nothing():

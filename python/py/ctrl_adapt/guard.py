@@ -12,8 +12,10 @@ a safety signal. It checks
    shorter than the index) violates the limit;
 2. **the envelope** (with ``horizon > 0``): the running cost against the highest running
    cost at the same tick of the bare episodes (``begin("nominal")``) it has seen, plus the
-   margins: ``threshold(t) = e(t) + relative_margin·|e(t)| + absolute_margin``. Ticks no
-   bare episode reached are not checked, nor is any tick before the first bare episode.
+   margins: ``threshold(t) = e(t) + w(t)·(relative_margin·|e(t)| + absolute_margin)``, the
+   weight ``w(t)`` falling linearly from 1 at the first tick to ``margin_taper`` at the last
+   (1, constant margins, by default). Ticks no bare episode reached are not checked, nor is
+   any tick before the first bare episode.
 
 It trips after ``limit_ticks`` consecutive ticks beyond some limit, or ``envelope_ticks``
 consecutive ticks above the envelope (hysteresis: with 2 or more, one noisy tick never
@@ -193,13 +195,15 @@ class Guard:
     ``limit_ticks`` and ``envelope_ticks`` (the hysteresis: consecutive ticks beyond a limit
     / above the envelope that trip it, at least 1; default 2); ``relative_margin`` and
     ``absolute_margin`` (the envelope's margins, finite, at least 0; default 0.1 and 0);
-    ``tripped_cost_span`` (what a trip at tick 0 adds to the failure cost, finite, above 0;
+    ``margin_taper`` (the fraction of both margins left at the envelope's last tick, from 0
+    to 1; default 1, constant margins: below 1 the guard is lenient early, where a good
+    candidate may still lag the nominal controller, and strict late); ``tripped_cost_span`` (what a trip at tick 0 adds to the failure cost, finite, above 0;
     default 1). The defaults are the library's ``GuardConfig::DEFAULT``.
 
     Raises :class:`GuardError` (a ``ValueError``) naming the argument for more limits or a
     longer horizon than the package holds, a state index from ``MAX_STATE`` = 64 on (pass
     that value as a signal), an unknown source, a NaN bound or ``low > high``, a count below
-    1, a negative or non-finite margin, a span not above 0.
+    1, a negative or non-finite margin, a taper outside [0, 1], a span not above 0.
 
     In a Gymnasium loop (the nominal controller ``pd``, the learned correction ``corr``)::
 
@@ -243,7 +247,8 @@ class Guard:
     __slots__ = ("_native", "__dict__")
 
     def __init__(self, limits=(), *, horizon=0, limit_ticks=2, envelope_ticks=2,
-                 relative_margin=0.1, absolute_margin=0.0, tripped_cost_span=1.0):
+                 relative_margin=0.1, absolute_margin=0.0, margin_taper=1.0,
+                 tripped_cost_span=1.0):
         limits = [_limit(l) for l in limits]
         raw = []
         for i, l in enumerate(limits):
@@ -262,6 +267,7 @@ class Guard:
             _int(envelope_ticks, "envelope_ticks"),
             float(relative_margin),
             float(absolute_margin),
+            float(margin_taper),
             float(tripped_cost_span),
         ))
 
@@ -357,9 +363,14 @@ class Guard:
         return self._config()[5]
 
     @property
+    def margin_taper(self):
+        """The fraction of the margins left at the envelope's last tick (1: constant)."""
+        return self._config()[6]
+
+    @property
     def tripped_cost_span(self):
         """What a trip at tick 0 adds to the failure cost."""
-        return self._config()[6]
+        return self._config()[7]
 
     @property
     def rust_type(self):
