@@ -25,14 +25,13 @@ continues from (the board's own episodes then count), and the learning curve is 
     python python/examples/pendulum_pd.py            # 98 trials of 4 × 1,000 steps
     python python/examples/pendulum_pd.py --short    # 28 trials of 1 × 300 steps (CI)
 
-Workers. A trial here is four episodes of a small MuJoCo model, short against Ray's own cost
-per trial (python/README.md has the measured wall times with one and two workers): the
-default is one worker. A simulator whose trials take seconds (many or long episodes) gains
-from ``--workers`` up to the CMA-ES population (7 here); the trainable is wrapped by
-``search.trainable`` so that Tune keeps its workers between generations, and
-``ctrl_adapt.pool`` is the cheaper path on one machine.
+Workers. The default is two (at most the machine's CPUs): the trainable is wrapped by
+``search.trainable`` so that Tune keeps its workers between generations, and two workers
+take about two thirds of one worker's wall time on the full run (python/README.md has the
+measured times). A simulator whose trials take longer gains more, from ``--workers`` up to
+the CMA-ES population (7 here); ``ctrl_adapt.pool`` is the cheaper path on one machine.
 
-Options: ``--workers N`` (Ray CPUs, default 1), ``--out DIR`` (default
+Options: ``--workers N`` (Ray CPUs, default 2), ``--out DIR`` (default
 ``target/pendulum-pd``), ``--seed S``. Everything is seeded: the initial states, the
 optimizer; with the same seed the run proposes the same candidates whatever the number of
 workers (reports in any order within a generation give the same state).
@@ -109,8 +108,8 @@ def plot(history, bare, path):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--short", action="store_true", help="28 trials of one 300-step episode (CI)")
-    p.add_argument("--workers", type=int, default=1,
-                   help="CPUs of the local Ray cluster (default 1: see the module docs)")
+    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1),
+                   help="CPUs of the local Ray cluster (default 2, at most the machine's)")
     p.add_argument("--out", default=os.path.join("target", "pendulum-pd"))
     p.add_argument("--seed", type=int, default=1)
     a = p.parse_args(argv)

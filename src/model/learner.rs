@@ -28,7 +28,7 @@
 //! in a current rotated by 45°): the screen trusts the same model the inner search
 //! exploited. It is not a safety guarantee.
 //!
-//! The pessimistic screen (`error_weight` > 0) departs from the and Black-DROPS's
+//! The pessimistic screen (`error_weight` > 0) departs from PILCO's and Black-DROPS's
 //! uncertainty-aware screens on purpose: an RLS model gives a point prediction, so the
 //! margin is one measured number for every candidate (the RMS of real − predicted over
 //! the episodes run so far), not a per-candidate variance. On the AUV it did not lower the
