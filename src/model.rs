@@ -10,7 +10,9 @@
 //!   of the state and the command, x' = x + Wᵀ·z(x, u), fitted every tick by regularised
 //!   recursive least squares with a forgetting factor ([`rls`]);
 //! * [`imagine_episode`] and [`rollout`]: the controller, its correction θ and the cost
-//!   shaper run against the model instead of the plant ([`imagine`]);
+//!   shaper run against the model instead of the plant ([`imagine`]); [`imagine_handover`]:
+//!   the rest of a running episode if the guard handed it back to the nominal controller
+//!   some ticks from now (a predictive trip);
 //! * [`OnlineModel`]: the model fed by the adapter from every tick of every episode, a type
 //!   parameter of the runner like the guard ([`Unmodelled`] by default, [`online`]);
 //! * [`ModelBased`]: any optimizer searching the model in a trust region around the best
@@ -42,7 +44,7 @@ pub mod learner;
 pub mod online;
 pub mod rls;
 
-pub use imagine::{imagine_episode, rollout};
+pub use imagine::{imagine_episode, imagine_handover, rollout};
 pub use learner::{ModelBased, ModelBasedConfig, Proposal, Source};
 pub use online::{OnlineModel, TickModel, Unmodelled};
 pub use rls::{ModelConfig, RlsModel};

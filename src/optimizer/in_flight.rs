@@ -692,6 +692,7 @@ mod tests {
     /// is pending), the rest of CRS's set follows by `suggest`, and reported in reverse
     /// order the state is the sequential run's. A start outside the box is refused.
     #[test]
+    #[cfg(feature = "serde")]
     fn a_start_is_the_first_candidate_and_goes_out_under_a_ticket() {
         use crate::optimizer::{CoordinateConfig, Sracos, TwoPhase};
         let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
