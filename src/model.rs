@@ -42,8 +42,8 @@ pub mod learner;
 pub mod online;
 pub mod rls;
 
-pub use imagine::{imagine_episode, rollout};
-pub use learner::{ModelBased, ModelBasedConfig, Proposal, Source};
+pub use imagine::{Imagined, imagine_episode, imagine_episode_with_variance, rollout};
+pub use learner::{ModelBased, ModelBasedConfig, Prediction, Proposal, Source};
 pub use online::{OnlineModel, TickModel, Unmodelled};
 pub use rls::{ModelConfig, RlsModel};
 

@@ -48,20 +48,39 @@ pub fn rollout<const S: usize, const A: usize, const R: usize, M: Regressors<S, 
     map: &M,
     start: &Vector<S>,
     ticks: u32,
-    mut step: impl FnMut(u32, &Vector<S>) -> Vector<A>,
+    step: impl FnMut(u32, &Vector<S>) -> Vector<A>,
 ) -> Result<Vector<S>, Error> {
+    roll::<S, A, R, M, false>(model, map, start, ticks, step).map(|(end, _)| end)
+}
+
+/// [`rollout`], and the sum of the leverages zₜᵀPzₜ of its ticks when `LEVERAGE` (0
+/// otherwise, and the per-tick quadratic form is not computed).
+fn roll<const S: usize, const A: usize, const R: usize, M: Regressors<S, A, R>, const LEVERAGE: bool>(
+    model: &RlsModel<S, A, R>,
+    map: &M,
+    start: &Vector<S>,
+    ticks: u32,
+    mut step: impl FnMut(u32, &Vector<S>) -> Vector<A>,
+) -> Result<(Vector<S>, f32), Error> {
     if start.iter().any(|v| !v.is_finite()) {
         return Err(Error::NonFinite("start"));
     }
     let mut state = *start;
+    let mut leverage = 0.0f32;
     for k in 0..ticks {
         let command = step(k, &state);
-        state = model.predict(map, &state, &command);
+        state = if LEVERAGE {
+            let (next, h) = model.predict_with_leverage(map, &state, &command);
+            leverage += h;
+            next
+        } else {
+            model.predict(map, &state, &command)
+        };
         if state.iter().any(|v| !v.is_finite()) {
             return Err(Error::NonFinite("prediction"));
         }
     }
-    Ok(state)
+    Ok((state, leverage))
 }
 
 /// The predicted cost of one episode of `controller` corrected by `theta`, scored by
@@ -129,9 +148,151 @@ pub fn imagine_episode<
     shaper: &mut Sh,
     observation: impl Fn(&Vector<S>) -> Sh::Observation,
 ) -> Result<f32, Error> {
+    imagine::<P, S, A, R, M, C, Sh, false>(
+        model,
+        map,
+        start,
+        ticks,
+        dt,
+        controller,
+        theta,
+        shaper,
+        observation,
+    )
+    .map(|i| i.cost)
+}
+
+/// An imagined episode's predicted cost and the model's uncertainty along its trajectory
+/// ([`imagine_episode_with_variance`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Imagined<const S: usize> {
+    /// The predicted cost, as [`imagine_episode`] returns it.
+    pub cost: f32,
+    /// Σₜ zₜᵀPzₜ over the episode's ticks: the summed [`RlsModel::leverage`] of the states
+    /// and commands the candidate visits.
+    pub leverage: f32,
+    /// Σₜ σ̂²·zₜᵀPzₜ per state dimension: the summed one-step
+    /// [`RlsModel::predictive_variance`] along the imagined trajectory.
+    pub variance: Vector<S>,
+}
+
+impl<const S: usize> Imagined<S> {
+    /// √(Σⱼ variance[j]): the root of the summed predictive variance over the state
+    /// dimensions, in the state's units, as one number per candidate (what
+    /// [`Prediction::uncertainty`](super::learner::Prediction) takes when the state's
+    /// dimensions share a unit; weight them yourself otherwise).
+    pub fn deviation(&self) -> f32 {
+        libm::sqrtf(self.variance.sum())
+    }
+}
+
+/// [`imagine_episode`], and the model's predictive variance summed along the imagined
+/// trajectory ([`Imagined`]): a candidate-dependent measure of how far the episode
+/// leaves the states and commands the model was fitted on.
+///
+/// Each tick t adds the leverage hₜ = zₜᵀPzₜ of the imagined state and command; the episode's
+/// variance is σ̂²·Σₜ hₜ per state dimension (σ̂² the model's [`RlsModel::residual_variance`]).
+/// PILCO (Deisenroth & Rasmussen, ICML 2011) propagates the Gaussian process's predictive
+/// distribution through the dynamics by moment matching and takes the expected cost;
+/// Black-DROPS (Chatzilygeroudis et al., IROS 2017) evaluates the policy on sampled models.
+/// This is cheaper and cruder: the one-step variances along the *mean* trajectory are
+/// summed, as if the one-step errors were independent and did not feed back through the
+/// dynamics or the controller, and the result is a variance of the state, not of the cost.
+/// It ranks candidates by how much they extrapolate, which is what a screen needs; it is
+/// not a calibrated confidence interval of the cost.
+///
+/// Costs R(R + 1)/2 multiply-adds per tick beyond [`imagine_episode`] (105 for R = 14).
+/// Errors as [`imagine_episode`]'s; a non-finite variance is [`Error::NonFinite`]`("variance")`.
+///
+/// ```
+/// use ctrl_adapt::controller::{CorrectedPd, IdentityFeatures, LinearPolicy, Pd};
+/// use ctrl_adapt::cost::QuadraticCost;
+/// use ctrl_adapt::model::{Affine, ModelConfig, RlsModel, imagine_episode_with_variance};
+/// use ctrl_adapt::Vector;
+/// // The double integrator [e, v] of `imagine_episode`'s example, fitted on small commands.
+/// let plant = |x: &Vector<2>, u: &Vector<1>| Vector::<2>::new(x[0] - 0.1 * x[1], x[1] + 0.1 * u[0]);
+/// let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT)?;
+/// let mut x = Vector::<2>::new(1.0, 0.0);
+/// for k in 0..300u32 {
+///     let noise = ((k * 7919) % 13) as f32 / 1300.0;
+///     let u = Vector::<1>::new(((k * 37) % 11) as f32 / 50.0 - 0.1 + x[0] - 1.5 * x[1]);
+///     let next = plant(&x, &u) + Vector::<2>::new(noise, -noise);
+///     model.update(&Affine, &x, &u, &next)?;
+///     x = next;
+/// }
+/// let pd = Pd::try_new(Vector::<1>::new(1.0), Vector::<1>::new(1.5))?;
+/// let policy = LinearPolicy::try_new(IdentityFeatures, Vector::<1>::new(10.0))?;
+/// let mut controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+/// let mut cost = QuadraticCost::try_new(Vector::<1>::new(1.0))?;
+/// let start = Vector::<2>::new(1.0, 0.0);
+/// let mut imagine = |theta: Vector<2>| imagine_episode_with_variance(&model, &Affine, &start,
+///     100, 0.1, &mut controller, &theta, &mut cost, |x| Vector::<1>::new(x[0]));
+/// // The gains the ticks were recorded with, and gains ten times larger than any seen.
+/// let near = imagine(Vector::<2>::new(0.0, 0.0))?;
+/// let far = imagine(Vector::<2>::new(0.8, -0.8))?;
+/// assert!(far.deviation() > 2.0 * near.deviation());
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+#[allow(clippy::too_many_arguments)]
+pub fn imagine_episode_with_variance<
+    const P: usize,
+    const S: usize,
+    const A: usize,
+    const R: usize,
+    M: Regressors<S, A, R>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+>(
+    model: &RlsModel<S, A, R>,
+    map: &M,
+    start: &Vector<S>,
+    ticks: u32,
+    dt: f32,
+    controller: &mut C,
+    theta: &Vector<P>,
+    shaper: &mut Sh,
+    observation: impl Fn(&Vector<S>) -> Sh::Observation,
+) -> Result<Imagined<S>, Error> {
+    imagine::<P, S, A, R, M, C, Sh, true>(
+        model,
+        map,
+        start,
+        ticks,
+        dt,
+        controller,
+        theta,
+        shaper,
+        observation,
+    )
+}
+
+/// The one imagined-episode loop behind [`imagine_episode`] and
+/// [`imagine_episode_with_variance`].
+#[allow(clippy::too_many_arguments)]
+fn imagine<
+    const P: usize,
+    const S: usize,
+    const A: usize,
+    const R: usize,
+    M: Regressors<S, A, R>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+    const LEVERAGE: bool,
+>(
+    model: &RlsModel<S, A, R>,
+    map: &M,
+    start: &Vector<S>,
+    ticks: u32,
+    dt: f32,
+    controller: &mut C,
+    theta: &Vector<P>,
+    shaper: &mut Sh,
+    observation: impl Fn(&Vector<S>) -> Sh::Observation,
+) -> Result<Imagined<S>, Error> {
     controller.reset();
     shaper.reset();
-    rollout(model, map, start, ticks, |k, state| {
+    let (_, leverage) = roll::<S, A, R, M, LEVERAGE>(model, map, start, ticks, |k, state| {
         let time = k as f32 * dt;
         let mut command = controller.corrected(theta, state, time);
         if command.iter().any(|v| !v.is_finite()) {
@@ -144,11 +305,18 @@ pub fn imagine_episode<
         command
     })?;
     let cost = shaper.cost();
-    if cost.is_finite() {
-        Ok(cost)
-    } else {
-        Err(Error::NonFinite("cost"))
+    if !cost.is_finite() {
+        return Err(Error::NonFinite("cost"));
     }
+    let variance = model.residual_variance() * leverage;
+    if !(leverage.is_finite() && variance.iter().all(|v| v.is_finite())) {
+        return Err(Error::NonFinite("variance"));
+    }
+    Ok(Imagined {
+        cost,
+        leverage,
+        variance,
+    })
 }
 
 #[cfg(test)]

@@ -78,6 +78,13 @@ pub struct ModelBasedConfig {
     /// The prediction error assumed before any is measured (≥ 0, finite); it counts as one
     /// measurement in the running root mean square, so it fades as real episodes come in.
     pub initial_error: f32,
+    /// k_u of the candidate-dependent screen (≥ 0, finite): with
+    /// [`ModelBased::propose_bounded`], the inner search minimises and the screen judges
+    /// J(θ) = predicted cost + k_u × the candidate's own [`Prediction::uncertainty`] (e.g. the
+    /// [`Imagined::deviation`](super::Imagined::deviation) of its imagined episode), so that
+    /// candidates that drive the model where it has no data are both avoided and screened
+    /// out. 0 (the default) ignores the uncertainty: J is the predicted cost.
+    pub uncertainty_weight: f32,
 }
 
 impl ModelBasedConfig {
@@ -93,6 +100,7 @@ impl ModelBasedConfig {
         inner_evaluations: 240,
         error_weight: 0.0,
         initial_error: 0.0,
+        uncertainty_weight: 0.0,
     };
 
     /// Checks every field (named in the error).
@@ -120,6 +128,10 @@ impl ModelBasedConfig {
         require(
             self.initial_error >= 0.0 && self.initial_error.is_finite(),
             "initial_error",
+        )?;
+        require(
+            self.uncertainty_weight >= 0.0 && self.uncertainty_weight.is_finite(),
+            "uncertainty_weight",
         )
     }
 }
@@ -127,6 +139,29 @@ impl ModelBasedConfig {
 impl Default for ModelBasedConfig {
     fn default() -> Self {
         Self::DEFAULT
+    }
+}
+
+/// The model's prediction of a candidate for [`ModelBased::propose_bounded`]: its cost and
+/// how uncertain the model is about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Prediction {
+    /// The predicted cost (finite, or the prediction counts as failed).
+    pub cost: f32,
+    /// The model's uncertainty about this candidate, in cost units once weighted by
+    /// [`ModelBasedConfig::uncertainty_weight`] (≥ 0 and finite, or the prediction counts as
+    /// failed when the weight is not 0), e.g. [`Imagined::deviation`](super::Imagined).
+    pub uncertainty: f32,
+}
+
+impl From<f32> for Prediction {
+    /// A point prediction: no uncertainty.
+    fn from(cost: f32) -> Self {
+        Self {
+            cost,
+            uncertainty: 0.0,
+        }
     }
 }
 
@@ -273,8 +308,33 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
     pub fn propose<R, O>(
         &mut self,
         rng: &mut R,
-        mut inner: impl FnMut(Bounds<N>, Vector<N>) -> Result<O, Error>,
+        inner: impl FnMut(Bounds<N>, Vector<N>) -> Result<O, Error>,
         mut predict: impl FnMut(&Vector<N>) -> Result<f32, Error>,
+    ) -> Result<Proposal<N>, Error>
+    where
+        R: RngCore + ?Sized,
+        O: Optimizer<N>,
+    {
+        self.propose_bounded(rng, inner, |theta| predict(theta).map(Prediction::from))
+    }
+
+    /// [`ModelBased::propose`] with a candidate-dependent bound: `predict(θ)` returns the
+    /// predicted cost and the model's uncertainty about θ ([`Prediction`]), typically from
+    /// [`imagine_episode_with_variance`](super::imagine_episode_with_variance). The inner
+    /// search minimises, and the screen judges, J(θ) = cost + k_u·uncertainty with
+    /// k_u = [`ModelBasedConfig::uncertainty_weight`]: a model candidate is proposed if
+    /// J + `error_weight` × [`ModelBased::prediction_error`] is at most the threshold and J
+    /// is below the best real θ's J. With k_u = 0 this is [`ModelBased::propose`].
+    ///
+    /// The bound is a pessimistic (upper-confidence) objective, as in safe exploration;
+    /// PILCO and Black-DROPS instead minimise the expected cost under the model's
+    /// uncertainty, which rewards exploring it. Here every candidate runs on the robot, so
+    /// the model's ignorance counts against it.
+    pub fn propose_bounded<R, O>(
+        &mut self,
+        rng: &mut R,
+        mut inner: impl FnMut(Bounds<N>, Vector<N>) -> Result<O, Error>,
+        mut predict: impl FnMut(&Vector<N>) -> Result<Prediction, Error>,
     ) -> Result<Proposal<N>, Error>
     where
         R: RngCore + ?Sized,
@@ -295,14 +355,28 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
         )?;
         let mut search = inner(trust, centre)?;
         let mut worst = f32::MIN;
-        let mut best_model: Option<(Vector<N>, f32)> = None;
+        let weight = self.config.uncertainty_weight;
+        // J(θ) = cost + k_u·uncertainty and the point cost, or None when either is unusable.
+        let mut objective = |theta: &Vector<N>| -> Option<(f32, f32)> {
+            let p = predict(theta).ok()?;
+            if !p.cost.is_finite() {
+                return None;
+            }
+            if weight == 0.0 {
+                return Some((p.cost, p.cost));
+            }
+            let j = p.cost + weight * p.uncertainty;
+            (p.uncertainty >= 0.0 && j.is_finite()).then_some((j, p.cost))
+        };
+        // The candidate's θ, J and point cost.
+        let mut best_model: Option<(Vector<N>, f32, f32)> = None;
         for _ in 0..self.config.inner_evaluations {
             let Ok(theta) = search.ask(rng) else { break };
-            let cost = match predict(&theta) {
-                Ok(c) if c.is_finite() => {
+            let cost = match objective(&theta) {
+                Some((c, point)) => {
                     worst = max(worst, c);
-                    if best_model.is_none_or(|(_, b)| c < b) {
-                        best_model = Some((theta, c));
+                    if best_model.is_none_or(|(_, b, _)| c < b) {
+                        best_model = Some((theta, c, point));
                     }
                     c
                 }
@@ -319,9 +393,7 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                 break;
             }
         }
-        let incumbent = self
-            .best
-            .map(|b| predict(&b.theta).ok().filter(|c| c.is_finite()));
+        let incumbent = self.best.map(|b| objective(&b.theta).map(|(j, _)| j));
         let threshold = self.reference.map(|c| c + self.config.margin);
         let pessimism = if self.config.error_weight > 0.0 {
             min(self.config.error_weight * self.prediction_error(), f32::MAX)
@@ -339,7 +411,7 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                 }
         };
         let (proposal, prediction) = match best_model {
-            Some((theta, predicted)) if passes(predicted) && self.bounds.contains(&theta) => (
+            Some((theta, j, predicted)) if passes(j) && self.bounds.contains(&theta) => (
                 Proposal {
                     theta,
                     source: Source::Model(predicted),
@@ -350,7 +422,7 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                 let theta = self.fallback.ask(rng)?;
                 // Predicted too, so that the model's error is measured on every episode,
                 // not only on those it chose.
-                let predicted = predict(&theta).ok().filter(|c| c.is_finite());
+                let predicted = predict(&theta).ok().map(|p| p.cost).filter(|c| c.is_finite());
                 (
                     Proposal {
                         theta,

@@ -193,6 +193,100 @@ impl<const S: usize, const A: usize, const R: usize> RlsModel<S, A, R> {
         state + self.weights.tr_mul(&z)
     }
 
+    /// The predicted next state and the leverage zᵀPz of its regressors, from one
+    /// evaluation of z: what [`RlsModel::predict`] and [`RlsModel::leverage`] return, for a
+    /// rollout that needs both.
+    pub fn predict_with_leverage<M: Regressors<S, A, R>>(
+        &self,
+        map: &M,
+        state: &Vector<S>,
+        command: &Vector<A>,
+    ) -> (Vector<S>, f32) {
+        let z = map.regressors(state, command);
+        (state + self.weights.tr_mul(&z), self.quadratic_form(&z))
+    }
+
+    /// The leverage zᵀPz of the regressors z(state, command): how far they lie from the
+    /// directions the fitted ticks excited, in units of the noise. Near 0 where many ticks
+    /// were recorded (P shrinks as 1/ticks along their directions), up to
+    /// `prior_variance`·|z|² along directions no tick has excited (bounded by
+    /// `max_variance`·|z|² under forgetting). Non-negative for finite z (P is kept positive
+    /// semi-definite; rounding is clamped at 0); a non-finite z gives a non-finite leverage.
+    ///
+    /// Costs R(R + 1)/2 multiply-adds on top of the regressors (P is symmetric, so only its
+    /// upper triangle is read): 105 for R = 14.
+    pub fn leverage<M: Regressors<S, A, R>>(
+        &self,
+        map: &M,
+        state: &Vector<S>,
+        command: &Vector<A>,
+    ) -> f32 {
+        self.quadratic_form(&map.regressors(state, command))
+    }
+
+    /// zᵀPz over the upper triangle: Σᵢ Pᵢᵢ zᵢ² + 2 Σᵢ<ⱼ Pᵢⱼ zᵢ zⱼ, half the multiply-adds of
+    /// z·(Pz) (nalgebra has no symmetric quadratic form returning a scalar).
+    fn quadratic_form(&self, z: &Vector<R>) -> f32 {
+        let mut sum = 0.0f32;
+        for i in 0..R {
+            let mut row = 0.5 * self.covariance[(i, i)] * z[i];
+            for j in (i + 1)..R {
+                row += self.covariance[(i, j)] * z[j];
+            }
+            sum += row * z[i];
+        }
+        let q = 2.0 * sum;
+        // A tiny negative from rounding where P is near singular is zero; NaN stays NaN.
+        if q < 0.0 { 0.0 } else { q }
+    }
+
+    /// The estimate of the noise variance σⱼ² of each state dimension's increment: the
+    /// running mean square of the a-priori one-step error ([`RlsModel::one_step_error`]
+    /// squared). Zero before the first tick.
+    pub fn residual_variance(&self) -> Vector<S> {
+        self.mean_square_error
+    }
+
+    /// The predictive variance of the next state, per state dimension: σ̂ⱼ² · zᵀPz, with
+    /// σ̂ⱼ² the [`RlsModel::residual_variance`] and zᵀPz the [`RlsModel::leverage`] of
+    /// z(state, command).
+    ///
+    /// This is the variance of the predicted mean Wᵀz under the Bayesian reading of
+    /// regularised least squares (weights with prior covariance σ²·`prior_variance`·I,
+    /// Gaussian noise of variance σ²; the posterior covariance of each column of W is σ²P,
+    /// exactly without forgetting): the model's uncertainty about its own prediction, large
+    /// where z points where no tick was recorded. It leaves out the noise σ² itself (the
+    /// same for every candidate) and, with forgetting or an a-priori σ̂² that still contains
+    /// the model's early errors, it is an estimate rather than a posterior. A non-finite
+    /// input gives a non-finite variance (never a panic).
+    ///
+    /// ```
+    /// use ctrl_adapt::model::{Affine, ModelConfig, RlsModel};
+    /// use ctrl_adapt::Vector;
+    /// // x' = 0.9 x + 0.5 u + noise, the command only ever between 0 and 1.
+    /// let mut model = RlsModel::<1, 1, 3>::try_new(ModelConfig::DEFAULT)?;
+    /// let mut x = Vector::<1>::new(0.0);
+    /// for k in 0..500u32 {
+    ///     let u = Vector::<1>::new((k % 10) as f32 / 10.0);
+    ///     let noise = ((k * 7919) % 13) as f32 / 130.0 - 0.05;
+    ///     let next = Vector::<1>::new(0.9 * x[0] + 0.5 * u[0] + noise);
+    ///     model.update(&Affine, &x, &u, &next)?;
+    ///     x = next;
+    /// }
+    /// let seen = model.predictive_variance(&Affine, &Vector::<1>::new(1.0), &Vector::<1>::new(0.5));
+    /// let unseen = model.predictive_variance(&Affine, &Vector::<1>::new(1.0), &Vector::<1>::new(20.0));
+    /// assert!(unseen[0] > 100.0 * seen[0]);
+    /// # Ok::<(), ctrl_adapt::Error>(())
+    /// ```
+    pub fn predictive_variance<M: Regressors<S, A, R>>(
+        &self,
+        map: &M,
+        state: &Vector<S>,
+        command: &Vector<A>,
+    ) -> Vector<S> {
+        self.mean_square_error * self.leverage(map, state, command)
+    }
+
     /// Fits one tick: `state` and `command` led to `next`. Returns the a-priori one-step
     /// error (next − prediction before the fit).
     ///
