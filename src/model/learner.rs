@@ -422,7 +422,10 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                 let theta = self.fallback.ask(rng)?;
                 // Predicted too, so that the model's error is measured on every episode,
                 // not only on those it chose.
-                let predicted = predict(&theta).ok().map(|p| p.cost).filter(|c| c.is_finite());
+                let predicted = predict(&theta)
+                    .ok()
+                    .map(|p| p.cost)
+                    .filter(|c| c.is_finite());
                 (
                     Proposal {
                         theta,
@@ -672,6 +675,95 @@ mod tests {
     }
 
     #[test]
+    fn propose_is_propose_bounded_without_uncertainty() {
+        for weight in [0.0, 5.0] {
+            let config = ModelBasedConfig {
+                uncertainty_weight: weight,
+                ..ModelBasedConfig::DEFAULT
+            };
+            let (mut a, mut b) = (learner(config), learner(config));
+            for l in [&mut a, &mut b] {
+                l.record(Vector::zeros(), 0.29).unwrap();
+                l.set_reference(0.29).unwrap();
+            }
+            let (mut ra, mut rb) = (rng(3), rng(3));
+            for _ in 0..4 {
+                let p = a.propose(&mut ra, inner, |t| Ok(real(t))).unwrap();
+                let q = b
+                    .propose_bounded(&mut rb, inner, |t| Ok(Prediction::from(real(t))))
+                    .unwrap();
+                assert_eq!(p, q);
+                a.tell(real(&p.theta)).unwrap();
+                b.tell(real(&q.theta)).unwrap();
+                assert_eq!(a, b);
+            }
+        }
+    }
+
+    /// A model that is right near θ = 0, where the ticks were recorded, and wrongly
+    /// optimistic away from it; its uncertainty grows with the distance.
+    fn optimistic(t: &Vector<2>) -> Result<Prediction, Error> {
+        Ok(Prediction {
+            cost: real(t) - 2.0 * t.norm_squared(),
+            uncertainty: 3.0 * t.norm_squared(),
+        })
+    }
+
+    #[test]
+    fn the_uncertainty_weight_keeps_the_search_near_the_data_and_screens() {
+        let propose = |weight: f32, reference: f32| {
+            let mut l = learner(ModelBasedConfig {
+                initial_radius: 1.0,
+                uncertainty_weight: weight,
+                ..ModelBasedConfig::DEFAULT
+            });
+            l.record(Vector::zeros(), real(&Vector::zeros())).unwrap();
+            l.set_reference(reference).unwrap();
+            l.propose_bounded(&mut rng(4), inner, optimistic).unwrap()
+        };
+        let bare = real(&Vector::zeros());
+        // k_u = 0 exploits the optimism to the box's corner, whose real cost is worse
+        // than the bare θ's.
+        let blind = propose(0.0, bare);
+        assert!(matches!(blind.source, Source::Model(_)));
+        assert!(blind.theta.amax() > 0.9, "{}", blind.theta);
+        assert!(real(&blind.theta) > bare);
+        // k_u = 1: J = real + |θ|², minimised at (0.25, −0.1), better than bare for real.
+        let bounded = propose(1.0, bare);
+        let Source::Model(predicted) = bounded.source else {
+            panic!("{bounded:?}")
+        };
+        assert!((bounded.theta - Vector::<2>::new(0.25, -0.1)).amax() < 0.05);
+        assert!(real(&bounded.theta) < bare);
+        // The source carries the point prediction, not J.
+        assert_eq!(predicted, optimistic(&bounded.theta).unwrap().cost);
+        // The screen judges J: with the threshold just below the bound's J, fallback.
+        let j = |t: &Vector<2>| {
+            let p = optimistic(t).unwrap();
+            p.cost + p.uncertainty
+        };
+        assert_eq!(
+            propose(1.0, j(&bounded.theta) - 0.01).source,
+            Source::Fallback
+        );
+        // An unusable uncertainty (negative, NaN) with k_u > 0 is a failed prediction.
+        let mut l = learner(ModelBasedConfig {
+            uncertainty_weight: 1.0,
+            ..ModelBasedConfig::DEFAULT
+        });
+        l.record(Vector::zeros(), bare).unwrap();
+        let p = l
+            .propose_bounded(&mut rng(5), inner, |t| {
+                Ok(Prediction {
+                    cost: real(t),
+                    uncertainty: f32::NAN,
+                })
+            })
+            .unwrap();
+        assert_eq!(p.source, Source::Fallback);
+    }
+
+    #[test]
     fn refuses_bad_tells_and_records_without_change() {
         let mut l = learner(ModelBasedConfig::DEFAULT);
         assert_eq!(l.tell(1.0), Err(Error::NoPendingAsk));
@@ -759,6 +851,20 @@ mod tests {
                 },
                 "initial_error",
             ),
+            (
+                ModelBasedConfig {
+                    uncertainty_weight: -0.1,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "uncertainty_weight",
+            ),
+            (
+                ModelBasedConfig {
+                    uncertainty_weight: f32::NAN,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "uncertainty_weight",
+            ),
         ] {
             assert_eq!(config.validate(), Err(Error::InvalidParameter(field)));
         }
@@ -775,11 +881,14 @@ mod tests {
             seed in any::<u64>(),
             error_weight in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
             initial_error in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
+            uncertainty_weight in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
+            uncertainties in proptest::collection::vec(any::<f32>(), 1..40),
         ) {
             let mut l = learner(ModelBasedConfig {
                 inner_evaluations: 30,
                 error_weight,
                 initial_error,
+                uncertainty_weight,
                 ..ModelBasedConfig::DEFAULT
             });
             let _ = l.set_reference(costs[0]);
@@ -787,9 +896,12 @@ mod tests {
             let mut best = f32::INFINITY;
             for (k, cost) in costs.iter().enumerate() {
                 let mut i = k;
-                let p = l.propose(&mut r, inner, |_| {
+                let p = l.propose_bounded(&mut r, inner, |_| {
                     i += 1;
-                    Ok(predictions[i % predictions.len()])
+                    Ok(Prediction {
+                        cost: predictions[i % predictions.len()],
+                        uncertainty: uncertainties[i % uncertainties.len()],
+                    })
                 });
                 let Ok(p) = p else { break };
                 prop_assert!(l.bounds.contains(&p.theta));
