@@ -10,7 +10,13 @@
 //! BUDGET=150 GRID=chosen cargo run --release -p experiments --example model_safety_auv -- 1 10
 //! GRID=chosen cargo run --release -p experiments --example model_safety_auv -- 101 110 trace
 //! GRID=uncertainty cargo run --release -p experiments --example model_safety_auv -- 101 110
+//! GRID=bounded cargo run --release -p experiments --example model_safety_auv -- 101 110 trace
 //! ```
+//!
+//! `trace` prints every episode (its cost, the model's prediction and uncertainty of it)
+//! and, per current, whether the uncertainty tells a wrong prediction: Spearman's ρ of the
+//! uncertainty of the model's own proposals with their |real − predicted| and with real −
+//! predicted, for the first two proposals and for the later ones.
 //!
 //! Per seed s and current: the disturbed real AUV (seed s), RNG seed s, 15 real episodes:
 //! episode 1 is the bare PD (θ = 0, cost c₀); then `explorations` episodes with θ uniform in
@@ -50,7 +56,7 @@ use ctrl_adapt::optimizer::{
 };
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
-use host_tests::median;
+use host_tests::{median, spearman};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -472,6 +478,47 @@ fn trace(seed: u64, r: &Run) {
     }
 }
 
+/// Does the model's uncertainty say when its prediction is wrong? Over the model's own
+/// proposals (episodes `first..=last`, counting the bare one as 1): Spearman's ρ of the
+/// uncertainty with |real − predicted| and with real − predicted (the model's optimism),
+/// and the mean uncertainty of the unsafe (vs the bare mean) and the safe ones.
+fn calibration(current: &str, runs: &[Run], first: usize, last: usize) {
+    let (mut uncertainty, mut size, mut optimism) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut unsafe_, mut safe) = (Vec::new(), Vec::new());
+    for r in runs {
+        for k in (first - 1)..last.min(r.costs.len()) {
+            let (Some(p), 'm') = (r.predicted[k], r.source[k]) else {
+                continue;
+            };
+            uncertainty.push(p.uncertainty);
+            size.push((r.costs[k] - p.cost).abs());
+            optimism.push(r.costs[k] - p.cost);
+            if r.costs[k] > limit(r.bare_mean) {
+                unsafe_.push(p.uncertainty);
+            } else {
+                safe.push(p.uncertainty);
+            }
+        }
+    }
+    let mean = |v: &[f32]| {
+        if v.is_empty() {
+            "–".to_string()
+        } else {
+            format!("{:.3}", v.iter().sum::<f32>() / v.len() as f32)
+        }
+    };
+    println!(
+        "  {current}, model proposals in episodes {first}–{last}: {} proposals, ρ(uncertainty, |error|) {:.2}, ρ(uncertainty, real − predicted) {:.2}, mean uncertainty unsafe {} ({}) / safe {} ({})",
+        uncertainty.len(),
+        spearman(&uncertainty, &size),
+        spearman(&uncertainty, &optimism),
+        mean(&unsafe_),
+        unsafe_.len(),
+        mean(&safe),
+        safe.len()
+    );
+}
+
 fn rotated() -> AuvConfig {
     let s = std::f64::consts::FRAC_1_SQRT_2;
     AuvConfig {
@@ -603,6 +650,9 @@ fn main() {
                 for (seed, r) in seeds.iter().zip(&runs) {
                     trace(*seed, r);
                 }
+                let first = 2 + settings.explorations;
+                calibration(name, &runs, first, first + 1);
+                calibration(name, &runs, first + 2, budget());
             }
         }
         println!(

@@ -33,8 +33,18 @@
 //! margin is one measured number for every candidate (the RMS of real − predicted over
 //! the episodes run so far), not a per-candidate variance. On the AUV it did not lower the
 //! unsafe count (a constant margin does not tell a wrong candidate from a right one) and
-//! sent episodes to the fallback; the default keeps it off (k = 0). See the findings for
-//! the candidate-dependent bound the measurements point to.
+//! sent episodes to the fallback; the default keeps it off (k = 0).
+//!
+//! The candidate-dependent bound ([`ModelBased::propose_bounded`],
+//! `uncertainty_weight` k_u) adds the candidate's own uncertainty instead, e.g. the model's
+//! predictive variance summed along its imagined episode
+//! ([`imagine_episode_with_variance`](super::imagine_episode_with_variance)): the inner
+//! search minimises, and the screen judges, cost + k_u × uncertainty. PILCO and
+//! Black-DROPS minimise the *expected* cost under the model's uncertainty (a Gaussian
+//! process's, propagated through the dynamics or sampled); this bound is pessimistic, on a
+//! variance summed along the mean trajectory without propagation. On the AUV it lowered the
+//! unsafe episodes only a little and did not remove them (the findings); it is off by
+//! default (k_u = 0).
 //!
 //! # Footprint
 //! For the AUV (N = 18, coordinate-search fallback) the learner is 1,040 bytes and its model
