@@ -184,7 +184,7 @@ pub struct Imagined<const S: usize> {
 }
 
 impl<const S: usize> Imagined<S> {
-    /// √(Σⱼ variance[j]): the root of the summed predictive variance over the state
+    /// √(Σⱼ varianceⱼ): the root of the summed predictive variance over the state
     /// dimensions, in the state's units, as one number per candidate (what
     /// [`Prediction::uncertainty`](super::learner::Prediction) takes when the state's
     /// dimensions share a unit; weight them yourself otherwise).
@@ -214,32 +214,38 @@ impl<const S: usize> Imagined<S> {
 /// Errors as [`imagine_episode`]'s; a non-finite variance is [`Error::NonFinite`]`("variance")`.
 ///
 /// ```
-/// use ctrl_adapt::controller::{CorrectedPd, IdentityFeatures, LinearPolicy, Pd};
+/// use ctrl_adapt::controller::{Controller, CorrectedPd, IdentityFeatures, LinearPolicy, Pd};
 /// use ctrl_adapt::cost::QuadraticCost;
 /// use ctrl_adapt::model::{Affine, ModelConfig, RlsModel, imagine_episode_with_variance};
 /// use ctrl_adapt::Vector;
-/// // The double integrator [e, v] of `imagine_episode`'s example, fitted on small commands.
+/// // The double integrator [e, v] of `imagine_episode`'s example, its model fitted on three
+/// // episodes of the bare PD with a small dither on the command.
 /// let plant = |x: &Vector<2>, u: &Vector<1>| Vector::<2>::new(x[0] - 0.1 * x[1], x[1] + 0.1 * u[0]);
-/// let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT)?;
-/// let mut x = Vector::<2>::new(1.0, 0.0);
-/// for k in 0..300u32 {
-///     let noise = ((k * 7919) % 13) as f32 / 1300.0;
-///     let u = Vector::<1>::new(((k * 37) % 11) as f32 / 50.0 - 0.1 + x[0] - 1.5 * x[1]);
-///     let next = plant(&x, &u) + Vector::<2>::new(noise, -noise);
-///     model.update(&Affine, &x, &u, &next)?;
-///     x = next;
-/// }
 /// let pd = Pd::try_new(Vector::<1>::new(1.0), Vector::<1>::new(1.5))?;
 /// let policy = LinearPolicy::try_new(IdentityFeatures, Vector::<1>::new(10.0))?;
 /// let mut controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
-/// let mut cost = QuadraticCost::try_new(Vector::<1>::new(1.0))?;
+/// let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT)?;
 /// let start = Vector::<2>::new(1.0, 0.0);
+/// for episode in 0..3u32 {
+///     let mut x = start;
+///     for k in 0..100u32 {
+///         let dither = ((k * 7919 + episode * 13) % 11) as f32 / 50.0 - 0.1;
+///         let u = controller.nominal(&x, k as f32 * 0.1) + Vector::<1>::new(dither);
+///         let noise = ((k * 104_729) % 13) as f32 / 1300.0 - 0.005;
+///         let next = plant(&x, &u) + Vector::<2>::new(noise, -noise);
+///         model.update(&Affine, &x, &u, &next)?;
+///         x = next;
+///     }
+/// }
+/// let mut cost = QuadraticCost::try_new(Vector::<1>::new(1.0))?;
 /// let mut imagine = |theta: Vector<2>| imagine_episode_with_variance(&model, &Affine, &start,
 ///     100, 0.1, &mut controller, &theta, &mut cost, |x| Vector::<1>::new(x[0]));
-/// // The gains the ticks were recorded with, and gains ten times larger than any seen.
+/// // The bare PD, as recorded, and a large correction the ticks never saw: the model
+/// // extrapolates along the second, and says so.
 /// let near = imagine(Vector::<2>::new(0.0, 0.0))?;
-/// let far = imagine(Vector::<2>::new(0.8, -0.8))?;
-/// assert!(far.deviation() > 2.0 * near.deviation());
+/// let far = imagine(Vector::<2>::new(1.0, -1.0))?;
+/// assert!(far.deviation() > 1.5 * near.deviation());
+/// assert!(far.leverage > 2.0 * near.leverage);
 /// # Ok::<(), ctrl_adapt::Error>(())
 /// ```
 #[allow(clippy::too_many_arguments)]

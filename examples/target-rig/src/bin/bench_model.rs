@@ -240,7 +240,10 @@ fn run(counter: &mut Counter) -> Result<(), Error> {
         });
         // The same episode: the same cost, bit for bit.
         failed += u32::from(imagined.map(|i| i.cost).ok() != cost.ok());
-        defmt::info!("footprint: sample imagined_episode_variance = {=u32}", count);
+        defmt::info!(
+            "footprint: sample imagined_episode_variance = {=u32}",
+            count
+        );
     }
     for _ in 0..PROPOSALS {
         let (mut controller, mut shaper) = (*adapter.controller(), *adapter.shaper());
