@@ -14,7 +14,9 @@
 //!    `error_weight` × the measured prediction error is at most the threshold (the
 //!    reference cost, e.g. the bare controller's measured cost, plus `margin`) and its
 //!    predicted cost is below the prediction for the best real θ; otherwise the fallback
-//!    optimizer's own model-free candidate is ([`Source::Fallback`]);
+//!    optimizer's own model-free candidate is ([`Source::Fallback`]). With
+//!    [`ModelBased::propose_bounded`] and `uncertainty_weight` k_u > 0, "predicted cost"
+//!    in steps 1 and 2 reads cost + k_u × the candidate's own uncertainty;
 //! 3. [`ModelBased::tell`] reports the real cost: the best real θ is updated, the fallback
 //!    is told only its own candidates, the error of the proposal's prediction is added to
 //!    the measured prediction error ([`ModelBased::prediction_error`]), and the trust
