@@ -197,7 +197,7 @@ def main(argv=None):
     p.add_argument("--budget", type=int, default=40)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--learners", default="coordinate,cem,cmaes,linebo",
-                   help=f"comma-separated, of {', '.join(LEARNERS)} (default the four the study reports)")
+                   help=f"comma-separated, of {', '.join(LEARNERS)} (default the four the setting was chosen on; the study reports the other three with --learners sracos,crs,rockstar)")
     p.add_argument("--setting", type=int, default=None, help="index in GRID (report; default the chosen one)")
     p.add_argument("--arm", choices=["both", "off", "on", "none"], default="both",
                    help="run only the unguarded arm (for every setting's counts) or the guarded "

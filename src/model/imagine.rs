@@ -154,18 +154,188 @@ pub fn imagine_episode<
     shaper: &mut Sh,
     observation: impl Fn(&Vector<S>) -> Sh::Observation,
 ) -> Result<f32, Error> {
-    imagine::<P, S, A, R, M, C, Sh, false>(
+    controller.reset();
+    shaper.reset();
+    continue_episode::<P, S, A, R, M, C, Sh, false>(
         model,
         map,
         start,
+        0,
         ticks,
         dt,
         controller,
         theta,
+        u32::MAX,
         shaper,
         observation,
     )
     .map(|i| i.cost)
+}
+
+/// The cost a running episode is forecast to end with if `theta` keeps correcting for
+/// `candidate_ticks` more ticks and the bare (nominal) controller runs the rest: a hand-over
+/// `candidate_ticks` from now, imagined on the model. `state` is the state at `tick` (before
+/// that tick's control), `ticks` the episode's length; `controller` and `shaper` are copies
+/// of the adapter's as they are now ([`Adapter::controller`], [`Adapter::shaper`]: their
+/// state, e.g. the PD's previous error and the running cost, carries on; nothing is reset).
+/// Each tick as in [`imagine_episode`].
+///
+/// This is the forecast of a *predictive safety filter* with the nominal controller as the
+/// backup (the filters surveyed by Brunke et al., "Safe Learning in Robotics", Annual
+/// Review of Control, Robotics, and Autonomous Systems 2022): give it to the guard as a
+/// safety signal ([`Source::Signal`]) with a limit, and the episode is handed back while
+/// the backup is still forecast to end it within the limit, `candidate_ticks` ahead of the
+/// point where, by the model, it no longer would. Unlike the filters of that survey, the
+/// backup's outcome is a forecast on a learned point model, not a certified invariant set:
+/// it is as good as the model around the states the episode visits (see
+/// `experiments/findings/guard.md`, where dividing by the model's own forecast of the bare
+/// episode removed the model's bias).
+///
+/// Errors as [`imagine_episode`]'s.
+///
+/// [`Adapter::controller`]: crate::controller::Adapter::controller
+/// [`Adapter::shaper`]: crate::controller::Adapter::shaper
+/// [`Source::Signal`]: crate::controller::guard::Source::Signal
+///
+/// ```
+/// use ctrl_adapt::controller::{Controller, CorrectedPd, IdentityFeatures, LinearPolicy, Pd};
+/// use ctrl_adapt::cost::{QuadraticCost, Shaper};
+/// use ctrl_adapt::model::{Affine, ModelConfig, RlsModel, imagine_episode, imagine_handover};
+/// use ctrl_adapt::Vector;
+/// // The plant of `imagine_episode`'s example, its model fitted on varied commands.
+/// let plant = |x: &Vector<2>, u: &Vector<1>| Vector::<2>::new(x[0] - 0.1 * x[1], x[1] + 0.1 * u[0]);
+/// let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT)?;
+/// let mut x = Vector::<2>::new(1.0, 0.0);
+/// for k in 0..300 {
+///     let u = Vector::<1>::new(((k * 37) % 11) as f32 / 5.0 - 1.0 + x[0] - 1.5 * x[1]);
+///     let next = plant(&x, &u);
+///     model.update(&Affine, &x, &u, &next)?;
+///     x = next;
+/// }
+/// let pd = Pd::try_new(Vector::<1>::new(1.0), Vector::<1>::new(1.5))?;
+/// let policy = LinearPolicy::try_new(IdentityFeatures, Vector::<1>::new(1.0))?;
+/// let mut controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+/// let mut cost = QuadraticCost::try_new(Vector::<1>::new(1.0))?;
+/// let start = Vector::<2>::new(1.0, 0.0);
+/// let theta = Vector::<2>::new(-0.8, 0.0); // a correction that slows the PD down
+/// // The episode on the plant, 30 ticks of θ so far.
+/// controller.reset();
+/// cost.reset();
+/// let mut x = start;
+/// for k in 0..30 {
+///     let u = controller.corrected(&theta, &x, k as f32 * 0.1);
+///     cost.observe(&Vector::<1>::new(x[0]), 0.1);
+///     x = plant(&x, &u);
+/// }
+/// // Handing over in 5 ticks is forecast to end lower than keeping θ to the end.
+/// let handover = imagine_handover(&model, &Affine, &x, 30, 100, 0.1, controller, &theta, 5,
+///     cost, |x| Vector::<1>::new(x[0]))?;
+/// let keep = imagine_handover(&model, &Affine, &x, 30, 100, 0.1, controller, &theta, 100,
+///     cost, |x| Vector::<1>::new(x[0]))?;
+/// assert!(handover < keep);
+/// # Ok::<(), ctrl_adapt::Error>(())
+/// ```
+#[allow(clippy::too_many_arguments)]
+pub fn imagine_handover<
+    const P: usize,
+    const S: usize,
+    const A: usize,
+    const R: usize,
+    M: Regressors<S, A, R>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+>(
+    model: &RlsModel<S, A, R>,
+    map: &M,
+    state: &Vector<S>,
+    tick: u32,
+    ticks: u32,
+    dt: f32,
+    mut controller: C,
+    theta: &Vector<P>,
+    candidate_ticks: u32,
+    mut shaper: Sh,
+    observation: impl Fn(&Vector<S>) -> Sh::Observation,
+) -> Result<f32, Error> {
+    continue_episode::<P, S, A, R, M, C, Sh, false>(
+        model,
+        map,
+        state,
+        tick,
+        ticks,
+        dt,
+        &mut controller,
+        theta,
+        tick.saturating_add(candidate_ticks),
+        &mut shaper,
+        observation,
+    )
+    .map(|i| i.cost)
+}
+
+/// Ticks `first..ticks` of an episode on the model from `state`, `controller` and `shaper`
+/// as they are: θ corrects before tick `correct_until`, the nominal controller after. The
+/// one imagined-episode loop behind [`imagine_episode`], [`imagine_handover`] and
+/// [`imagine_episode_with_variance`]; the leverage is summed only when `LEVERAGE`.
+#[allow(clippy::too_many_arguments)]
+fn continue_episode<
+    const P: usize,
+    const S: usize,
+    const A: usize,
+    const R: usize,
+    M: Regressors<S, A, R>,
+    C: Controller<P, S, A>,
+    Sh: Shaper,
+    const LEVERAGE: bool,
+>(
+    model: &RlsModel<S, A, R>,
+    map: &M,
+    state: &Vector<S>,
+    first: u32,
+    ticks: u32,
+    dt: f32,
+    controller: &mut C,
+    theta: &Vector<P>,
+    correct_until: u32,
+    shaper: &mut Sh,
+    observation: impl Fn(&Vector<S>) -> Sh::Observation,
+) -> Result<Imagined<S>, Error> {
+    let (_, leverage) = roll::<S, A, R, M, LEVERAGE>(
+        model,
+        map,
+        state,
+        ticks.saturating_sub(first),
+        |k, state| {
+            let tick = first + k;
+            let time = tick as f32 * dt;
+            let mut command = if tick < correct_until {
+                controller.corrected(theta, state, time)
+            } else {
+                controller.nominal(state, time)
+            };
+            if command.iter().any(|v| !v.is_finite()) {
+                command = controller.nominal(state, time);
+                if command.iter().any(|v| !v.is_finite()) {
+                    command = controller.safe_action();
+                }
+            }
+            shaper.observe(&observation(state), dt);
+            command
+        },
+    )?;
+    let cost = shaper.cost();
+    if !cost.is_finite() {
+        return Err(Error::NonFinite("cost"));
+    }
+    let variance = model.residual_variance() * leverage;
+    if !(leverage.is_finite() && variance.iter().all(|v| v.is_finite())) {
+        return Err(Error::NonFinite("variance"));
+    }
+    Ok(Imagined {
+        cost,
+        leverage,
+        variance,
+    })
 }
 
 /// An imagined episode's predicted cost and the model's uncertainty along its trajectory
@@ -268,69 +438,21 @@ pub fn imagine_episode_with_variance<
     shaper: &mut Sh,
     observation: impl Fn(&Vector<S>) -> Sh::Observation,
 ) -> Result<Imagined<S>, Error> {
-    imagine::<P, S, A, R, M, C, Sh, true>(
+    controller.reset();
+    shaper.reset();
+    continue_episode::<P, S, A, R, M, C, Sh, true>(
         model,
         map,
         start,
+        0,
         ticks,
         dt,
         controller,
         theta,
+        u32::MAX,
         shaper,
         observation,
     )
-}
-
-/// The one imagined-episode loop behind [`imagine_episode`] and
-/// [`imagine_episode_with_variance`].
-#[allow(clippy::too_many_arguments)]
-fn imagine<
-    const P: usize,
-    const S: usize,
-    const A: usize,
-    const R: usize,
-    M: Regressors<S, A, R>,
-    C: Controller<P, S, A>,
-    Sh: Shaper,
-    const LEVERAGE: bool,
->(
-    model: &RlsModel<S, A, R>,
-    map: &M,
-    start: &Vector<S>,
-    ticks: u32,
-    dt: f32,
-    controller: &mut C,
-    theta: &Vector<P>,
-    shaper: &mut Sh,
-    observation: impl Fn(&Vector<S>) -> Sh::Observation,
-) -> Result<Imagined<S>, Error> {
-    controller.reset();
-    shaper.reset();
-    let (_, leverage) = roll::<S, A, R, M, LEVERAGE>(model, map, start, ticks, |k, state| {
-        let time = k as f32 * dt;
-        let mut command = controller.corrected(theta, state, time);
-        if command.iter().any(|v| !v.is_finite()) {
-            command = controller.nominal(state, time);
-            if command.iter().any(|v| !v.is_finite()) {
-                command = controller.safe_action();
-            }
-        }
-        shaper.observe(&observation(state), dt);
-        command
-    })?;
-    let cost = shaper.cost();
-    if !cost.is_finite() {
-        return Err(Error::NonFinite("cost"));
-    }
-    let variance = model.residual_variance() * leverage;
-    if !(leverage.is_finite() && variance.iter().all(|v| v.is_finite())) {
-        return Err(Error::NonFinite("variance"));
-    }
-    Ok(Imagined {
-        cost,
-        leverage,
-        variance,
-    })
 }
 
 #[cfg(test)]
@@ -359,6 +481,69 @@ mod tests {
         assert_eq!(
             rollout(&model, &Affine, &start, 1, |_, _| Vector::<1>::zeros()),
             Err(Error::NonFinite("start"))
+        );
+    }
+
+    #[test]
+    fn a_handover_at_the_ends_is_the_bare_or_the_candidates_episode() {
+        // Any fitted model will do: the identities are exact.
+        let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
+        let mut x = Vector::<2>::new(1.0, 0.0);
+        for k in 0..200u32 {
+            let u = Vector::<1>::new((k.wrapping_mul(7919) % 13) as f32 / 6.0 - 1.0);
+            let next = Vector::<2>::new(x[0] - 0.1 * x[1], x[1] + 0.1 * u[0]);
+            model.update(&Affine, &x, &u, &next).unwrap();
+            x = next;
+        }
+        let pd = Pd::try_new(Vector::<1>::new(1.0), Vector::<1>::new(1.0)).unwrap();
+        let policy = LinearPolicy::try_new(IdentityFeatures, Vector::<1>::new(2.0)).unwrap();
+        let mut controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+        let mut shaper = QuadraticCost::try_new(Vector::<1>::new(1.0)).unwrap();
+        let start = Vector::<2>::new(1.0, 0.0);
+        let theta = Vector::<2>::new(0.7, -0.3);
+        let obs = |x: &Vector<2>| Vector::<1>::new(x[0]);
+        let mut episode = |theta: &Vector<2>| {
+            imagine_episode(
+                &model,
+                &Affine,
+                &start,
+                60,
+                0.1,
+                &mut controller,
+                theta,
+                &mut shaper,
+                obs,
+            )
+            .unwrap()
+        };
+        let (bare, candidate) = (episode(&Vector::zeros()), episode(&theta));
+        controller.reset();
+        shaper.reset();
+        let handover = |candidate_ticks| {
+            imagine_handover(
+                &model,
+                &Affine,
+                &start,
+                0,
+                60,
+                0.1,
+                controller,
+                &theta,
+                candidate_ticks,
+                shaper,
+                obs,
+            )
+            .unwrap()
+        };
+        assert_eq!(handover(0), bare);
+        assert_eq!(handover(60), candidate);
+        assert_eq!(handover(u32::MAX), candidate);
+        // Past the episode's end nothing is left to run: the shaper's cost as it is.
+        assert_eq!(
+            imagine_handover(
+                &model, &Affine, &start, 60, 60, 0.1, controller, &theta, 3, shaper, obs
+            ),
+            Err(Error::NonFinite("cost"))
         );
     }
 

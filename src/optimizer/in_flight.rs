@@ -692,6 +692,7 @@ mod tests {
     /// is pending), the rest of CRS's set follows by `suggest`, and reported in reverse
     /// order the state is the sequential run's. A start outside the box is refused.
     #[test]
+    #[cfg(feature = "serde")]
     fn a_start_is_the_first_candidate_and_goes_out_under_a_ticket() {
         use crate::optimizer::{CoordinateConfig, Sracos, TwoPhase};
         let b = Bounds::<3>::uniform(-1.0, 1.0).unwrap();
@@ -711,12 +712,9 @@ mod tests {
         let optimizers: [Any3; 3] = [crs.into(), sracos.into(), two.into()];
         for optimizer in optimizers {
             assert_eq!(optimizer.pending(), Some(&start));
-            #[cfg(feature = "serde")]
-            {
-                let mut buf = [0u8; 4096];
-                let bytes = crate::record::save(&optimizer, &mut buf).unwrap();
-                assert_eq!(crate::record::load::<Any3>(bytes).as_ref(), Ok(&optimizer));
-            }
+            let mut buf = [0u8; 4096];
+            let bytes = crate::record::save(&optimizer, &mut buf).unwrap();
+            assert_eq!(crate::record::load::<Any3>(bytes).as_ref(), Ok(&optimizer));
             let mut sequential = optimizer.clone();
             let mut flight = InFlight::<_, 3, 8>::new(optimizer);
             let (mut r, mut r_seq) = (rng(3), rng(3));
@@ -728,15 +726,12 @@ mod tests {
                 out.push(pair);
             }
             assert_eq!(out.first().map(|(_, t)| *t), Some(start));
-            #[cfg(feature = "serde")]
-            {
-                let mut bytes = [0u8; 4096];
-                let saved = crate::record::save(&flight, &mut bytes).unwrap();
-                assert_eq!(
-                    crate::record::load::<InFlight<Any3, 3, 8>>(saved).as_ref(),
-                    Ok(&flight)
-                );
-            }
+            let mut bytes = [0u8; 4096];
+            let saved = crate::record::save(&flight, &mut bytes).unwrap();
+            assert_eq!(
+                crate::record::load::<InFlight<Any3, 3, 8>>(saved).as_ref(),
+                Ok(&flight)
+            );
             for (ticket, theta) in out.iter().rev() {
                 flight.report(*ticket, cost(theta)).unwrap();
             }
