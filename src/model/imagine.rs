@@ -380,7 +380,7 @@ impl<const S: usize> Imagined<S> {
 ///
 /// Costs R² + R multiply-adds per tick beyond [`imagine_episode`] (210 for R = 14): at the
 /// AUV's size on a Cortex-M4F at opt-level 3, about 285,000 instructions per 240-tick
-/// episode instead of 156,300 (the `bench_model` firmware).
+/// episode instead of 156,000 (the `bench_model` firmware).
 /// Errors as [`imagine_episode`]'s; a non-finite variance is [`Error::NonFinite`]`("variance")`.
 ///
 /// ```
