@@ -98,6 +98,8 @@ const _: () = {
     assert_format::<model::ModelBasedConfig>();
     assert_format::<model::Source>();
     assert_format::<model::Proposal<3>>();
+    assert_format::<model::Prediction>();
+    assert_format::<model::Imagined<6>>();
     assert_format::<model::ModelBased<CoordinateSearch<3>, 3>>();
     assert_format::<model::Unmodelled>();
     assert_format::<model::OnlineModel<model::Affine, 6, 3, 10>>();

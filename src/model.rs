@@ -12,7 +12,8 @@
 //! * [`imagine_episode`] and [`rollout`]: the controller, its correction θ and the cost
 //!   shaper run against the model instead of the plant ([`imagine`]); [`imagine_handover`]:
 //!   the rest of a running episode if the guard handed it back to the nominal controller
-//!   some ticks from now (a predictive trip);
+//!   some ticks from now (a predictive trip); [`imagine_episode_with_variance`]: an
+//!   imagined episode with the model's predictive variance summed along it;
 //! * [`OnlineModel`]: the model fed by the adapter from every tick of every episode, a type
 //!   parameter of the runner like the guard ([`Unmodelled`] by default, [`online`]);
 //! * [`ModelBased`]: any optimizer searching the model in a trust region around the best
@@ -35,17 +36,21 @@
 //! * hidden state (a thruster's lag, a filter inside the low-level loop): the one-step
 //!   prediction error stays above the noise floor, and grows over a rollout;
 //! * the uncertainty of its own predictions: unlike a Gaussian process, the model gives a
-//!   point prediction. Its running one-step error ([`RlsModel::one_step_error`]) and its
-//!   open-loop episode error ([`RlsModel::episode_error`]) say how far to trust it; a
-//!   learner should keep its search near θ the robot has run (a trust region).
+//!   point prediction. Its running one-step error ([`RlsModel::one_step_error`]), its
+//!   open-loop episode error ([`RlsModel::episode_error`]) and the leverage of a state and
+//!   command ([`RlsModel::predictive_variance`]: how far they lie from the recorded ticks)
+//!   say how far to trust it; a learner should keep its search near θ the robot has run
+//!   (a trust region).
 
 pub mod imagine;
 pub mod learner;
 pub mod online;
 pub mod rls;
 
-pub use imagine::{imagine_episode, imagine_handover, rollout};
-pub use learner::{ModelBased, ModelBasedConfig, Proposal, Source};
+pub use imagine::{
+    Imagined, imagine_episode, imagine_episode_with_variance, imagine_handover, rollout,
+};
+pub use learner::{ModelBased, ModelBasedConfig, Prediction, Proposal, Source};
 pub use online::{OnlineModel, TickModel, Unmodelled};
 pub use rls::{ModelConfig, RlsModel};
 

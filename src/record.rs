@@ -1225,6 +1225,39 @@ mod tests {
         );
     }
 
+    /// A learner with the candidate-dependent bound, a bounded proposal pending, reloads
+    /// equal; a record whose `uncertainty_weight` is forged negative or NaN is refused.
+    #[test]
+    fn a_bounded_model_based_learner_reloads_and_its_weight_is_checked() {
+        use crate::model::Prediction;
+        let bounds = Bounds::<2>::uniform(-5.0, 5.0).unwrap();
+        let fallback =
+            CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT).unwrap();
+        let config = ModelBasedConfig {
+            inner_evaluations: 16,
+            uncertainty_weight: 0.8125,
+            ..ModelBasedConfig::DEFAULT
+        };
+        let mut l = ModelBased::try_new(bounds, fallback, config).unwrap();
+        l.record(Vector::zeros(), 0.0).unwrap();
+        l.propose_bounded(&mut rng(6), model_inner, |t| {
+            Ok(Prediction {
+                cost: -t.norm_squared(),
+                uncertainty: t.norm(),
+            })
+        })
+        .unwrap();
+        type Learner = ModelBased<CoordinateSearch<2>, 2>;
+        let record = bytes(&l);
+        assert_eq!(load::<Learner>(&record), Ok(l));
+        for bad in [-1.0, f32::NAN] {
+            assert_eq!(
+                load::<Learner>(&forge_value(&record, 0.8125, 0, bad)).unwrap_err(),
+                RecordError::Invalid(Error::InvalidParameter("uncertainty_weight"))
+            );
+        }
+    }
+
     /// An adapter feeding a plant model saves and loads back equal, the model's ticks and
     /// the running episode's previous tick included, and continues identically; the model
     /// is part of its shape.

@@ -25,7 +25,7 @@ use ctrl_adapt::model::{Affine, AffineWith, ModelConfig, Regressors, RlsModel, i
 use ctrl_adapt::optimizer::Vector;
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
-use host_tests::median;
+use host_tests::{median, spearman};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -79,34 +79,6 @@ fn in_layer(x: &Vector<6>) -> f32 {
     } else {
         0.0
     }
-}
-
-/// Ranks with ties averaged, then Pearson's correlation of the ranks.
-fn spearman(a: &[f32], b: &[f32]) -> f64 {
-    fn ranks(v: &[f32]) -> Vec<f64> {
-        let mut order: Vec<usize> = (0..v.len()).collect();
-        order.sort_by(|&i, &j| v[i].total_cmp(&v[j]));
-        let mut r = vec![0.0; v.len()];
-        let mut i = 0;
-        while i < order.len() {
-            let mut j = i;
-            while j + 1 < order.len() && v[order[j + 1]] == v[order[i]] {
-                j += 1;
-            }
-            for k in i..=j {
-                r[order[k]] = (i + j) as f64 / 2.0;
-            }
-            i = j + 1;
-        }
-        r
-    }
-    let (ra, rb) = (ranks(a), ranks(b));
-    let n = a.len() as f64;
-    let (ma, mb) = (ra.iter().sum::<f64>() / n, rb.iter().sum::<f64>() / n);
-    let cov: f64 = ra.iter().zip(&rb).map(|(x, y)| (x - ma) * (y - mb)).sum();
-    let va: f64 = ra.iter().map(|x| (x - ma).powi(2)).sum();
-    let vb: f64 = rb.iter().map(|y| (y - mb).powi(2)).sum();
-    cov / (va * vb).sqrt()
 }
 
 /// What one feature set scored on one seed after some fitting episodes.

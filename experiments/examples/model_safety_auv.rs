@@ -9,7 +9,14 @@
 //! cargo run --release -p experiments --example model_safety_auv -- 1 10      # report
 //! BUDGET=150 GRID=chosen cargo run --release -p experiments --example model_safety_auv -- 1 10
 //! GRID=chosen cargo run --release -p experiments --example model_safety_auv -- 101 110 trace
+//! GRID=uncertainty cargo run --release -p experiments --example model_safety_auv -- 101 110
+//! GRID=bounded cargo run --release -p experiments --example model_safety_auv -- 101 110 trace
 //! ```
+//!
+//! `trace` prints every episode (its cost, the model's prediction and uncertainty of it)
+//! and, per current, whether the uncertainty tells a wrong prediction: Spearman's ρ of the
+//! uncertainty of the model's own proposals with their |real − predicted| and with real −
+//! predicted, for the first two proposals and for the later ones.
 //!
 //! Per seed s and current: the disturbed real AUV (seed s), RNG seed s, 15 real episodes:
 //! episode 1 is the bare PD (θ = 0, cost c₀); then `explorations` episodes with θ uniform in
@@ -28,8 +35,9 @@
 //! itself exceeds 1.2 × its first episode's cost in some repeats).
 //!
 //! The settings: by default the 23 of the findings (`FINDINGS_GRID`), `GRID=chosen` the
-//! chosen one alone, or `GRID="r₀,explore,explorations,velocity scale,fallback step,k,e₀,
-//! ensemble;…"`. Rule for
+//! chosen one alone, `GRID=uncertainty` the candidate-dependent screen's
+//! (`UNCERTAINTY_GRID`), `GRID=bounded` the one chosen from it, or `GRID="r₀,explore,explorations,velocity scale,fallback step,k,e₀,
+//! ensemble[,k_u];…"`. Rule for
 //! choosing, written before seeds 1–10 were run: among the settings run on seeds 101–110,
 //! keep those that reach 1 m in at least as many of the 20 runs (10 seeds × 2 currents) as
 //! the previous setting; of those, the fewest unsafe episodes against the bare mean summed
@@ -40,15 +48,15 @@
 use ctrl_adapt::controller::Controller;
 use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::model::{
-    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Regressors, RlsModel, Source,
-    imagine_episode,
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Prediction, Regressors, RlsModel,
+    Source, imagine_episode_with_variance,
 };
 use ctrl_adapt::optimizer::{
     Bounds, Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector,
 };
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
-use host_tests::median;
+use host_tests::{median, spearman};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -130,12 +138,16 @@ struct Settings {
     /// is j modulo `ensemble`); the prediction is the worst of theirs and the full model's.
     /// 0: the full model alone.
     ensemble: usize,
+    /// k_u of the candidate-dependent screen (`ModelBasedConfig::uncertainty_weight`): the
+    /// inner search and the screen use the predicted cost plus k_u × the imagined
+    /// episode's `Imagined::deviation` (full model). 0: the point prediction.
+    uncertainty_weight: f32,
 }
 
 impl Settings {
     fn name(&self) -> String {
         format!(
-            "r₀ {}, {}×±{} (v ×{}), fallback step {}, k {}, e₀ {}, ensemble {}",
+            "r₀ {}, {}×±{} (v ×{}), fallback step {}, k {}, e₀ {}, ensemble {}{}",
             self.radius,
             self.explorations,
             self.explore,
@@ -143,7 +155,12 @@ impl Settings {
             self.fallback_step,
             self.error_weight,
             self.initial_error,
-            self.ensemble
+            self.ensemble,
+            if self.uncertainty_weight > 0.0 {
+                format!(", k_u {}", self.uncertainty_weight)
+            } else {
+                String::new()
+            }
         )
     }
 }
@@ -156,7 +173,7 @@ struct Run {
     bare_mean: f32,
     costs: Vec<f32>,
     source: Vec<char>,
-    predicted: Vec<Option<f32>>,
+    predicted: Vec<Option<Prediction>>,
     errors: Vec<f32>,
 }
 
@@ -209,7 +226,7 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
         let e = run(&theta, &mut auv);
         fit(&mut models, &e);
         // A prediction that failed counts as an error of the failure cost, 10.
-        let error = predicted.map_or(10.0, |p| (e.cost - p).abs().min(10.0));
+        let error = predicted.map_or(10.0, |p| (e.cost - p.cost).abs().min(10.0));
         squared += error * error;
         explored.push((theta, e.cost, predicted.ok()));
     }
@@ -219,6 +236,7 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
         margin: 0.2 * bare.cost.abs(),
         inner_evaluations: INNER_BUDGET,
         error_weight: settings.error_weight,
+        uncertainty_weight: settings.uncertainty_weight,
         initial_error: if settings.initial_error < 0.0 {
             measured
         } else {
@@ -254,15 +272,13 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
     while run_.costs.len() < budget() {
         let predict = |theta: &Vector<P>| predict_with(&models, &map, &start, theta);
         let error = learner.prediction_error();
-        let proposal = match learner.propose(&mut rng, inner, predict) {
+        let proposal = match learner.propose_bounded(&mut rng, inner, predict) {
             Ok(p) => p,
             // The fallback is spent and the model's candidate did not pass: stop.
             Err(_) => break,
         };
-        let predicted = match proposal.source {
-            Source::Model(c) => Some(c),
-            Source::Fallback => predict(&proposal.theta).ok(),
-        };
+        // The model's cost and uncertainty of the proposal, whichever proposed it.
+        let predicted = predict(&proposal.theta).ok();
         let e = run(&proposal.theta, &mut auv);
         fit(&mut models, &e);
         learner.tell(e.cost).unwrap();
@@ -277,18 +293,20 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
     run_
 }
 
-/// The worst of the models' predicted survey costs of θ from `start`.
+/// The worst of the models' predicted survey costs of θ from `start`, and the full
+/// model's uncertainty along its imagined episode (`Imagined::deviation`).
 fn predict_with<M: Regressors<6, 3, R>>(
     models: &[RlsModel<6, 3, R>],
     map: &M,
     start: &Vector<6>,
     theta: &Vector<P>,
-) -> Result<f32, Error> {
+) -> Result<Prediction, Error> {
     let mut worst = f32::MIN;
-    for model in models {
+    let mut uncertainty = 0.0;
+    for (m, model) in models.iter().enumerate() {
         let mut controller = auv_task::controller();
         let mut shaper = SurveyCost::try_new(RADIUS).unwrap();
-        let c = imagine_episode(
+        let imagined = imagine_episode_with_variance(
             model,
             map,
             start,
@@ -299,9 +317,15 @@ fn predict_with<M: Regressors<6, 3, R>>(
             &mut shaper,
             |x| Vector::<3>::new(x[0], x[1], x[2]),
         )?;
-        worst = worst.max(c);
+        worst = worst.max(imagined.cost);
+        if m == 0 {
+            uncertainty = imagined.deviation();
+        }
     }
-    Ok(worst)
+    Ok(Prediction {
+        cost: worst,
+        uncertainty,
+    })
 }
 
 /// The coordinate search alone from θ = 0 (the bare PD is its first candidate).
@@ -439,7 +463,7 @@ fn summary(current: &str, name: &str, runs: &[Run]) -> Summary {
 fn trace(seed: u64, r: &Run) {
     for (k, c) in r.costs.iter().enumerate() {
         println!(
-            "seed {seed} ep {:2} {} cost {c:7.3} {} predicted {:>8} error {:.3}",
+            "seed {seed} ep {:2} {} cost {c:7.3} {} predicted {:>8} uncertainty {:>8} error {:.3}",
             k + 1,
             r.source[k],
             if *c > limit(r.bare_mean) {
@@ -447,10 +471,52 @@ fn trace(seed: u64, r: &Run) {
             } else {
                 "      "
             },
-            r.predicted[k].map_or("-".into(), |p| format!("{p:.3}")),
+            r.predicted[k].map_or("-".into(), |p| format!("{:.3}", p.cost)),
+            r.predicted[k].map_or("-".into(), |p| format!("{:.3}", p.uncertainty)),
             r.errors[k]
         );
     }
+}
+
+/// Does the model's uncertainty say when its prediction is wrong? Over the model's own
+/// proposals (episodes `first..=last`, counting the bare one as 1): Spearman's ρ of the
+/// uncertainty with |real − predicted| and with real − predicted (the model's optimism),
+/// and the mean uncertainty of the unsafe (vs the bare mean) and the safe ones.
+fn calibration(current: &str, runs: &[Run], first: usize, last: usize) {
+    let (mut uncertainty, mut size, mut optimism) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut unsafe_, mut safe) = (Vec::new(), Vec::new());
+    for r in runs {
+        for k in (first - 1)..last.min(r.costs.len()) {
+            let (Some(p), 'm') = (r.predicted[k], r.source[k]) else {
+                continue;
+            };
+            uncertainty.push(p.uncertainty);
+            size.push((r.costs[k] - p.cost).abs());
+            optimism.push(r.costs[k] - p.cost);
+            if r.costs[k] > limit(r.bare_mean) {
+                unsafe_.push(p.uncertainty);
+            } else {
+                safe.push(p.uncertainty);
+            }
+        }
+    }
+    let mean = |v: &[f32]| {
+        if v.is_empty() {
+            "–".to_string()
+        } else {
+            format!("{:.3}", v.iter().sum::<f32>() / v.len() as f32)
+        }
+    };
+    println!(
+        "  {current}, model proposals in episodes {first}–{last}: {} proposals, ρ(uncertainty, |error|) {:.2}, ρ(uncertainty, real − predicted) {:.2}, mean uncertainty unsafe {} ({}) / safe {} ({})",
+        uncertainty.len(),
+        spearman(&uncertainty, &size),
+        spearman(&uncertainty, &optimism),
+        mean(&unsafe_),
+        unsafe_.len(),
+        mean(&safe),
+        safe.len()
+    );
 }
 
 fn rotated() -> AuvConfig {
@@ -490,6 +556,26 @@ const FINDINGS_GRID: [&str; 23] = [
     "0.15,0.05,3,1,0.05,2,-1,0",
 ];
 
+/// The candidate-dependent screen's grid (`GRID=uncertainty`; 9th field k_u, the
+/// `ModelBasedConfig::uncertainty_weight`): the previous setting with k_u from 0 to 10, and
+/// the small-step setting (r₀ 0.05, fallback step 0.05) with k_u 0.3, 1 and 3.
+const UNCERTAINTY_GRID: [&str; 10] = [
+    "0.15,0.05,3,1,0.25,0,0,0,0",
+    "0.15,0.05,3,1,0.25,0,0,0,0.03",
+    "0.15,0.05,3,1,0.25,0,0,0,0.1",
+    "0.15,0.05,3,1,0.25,0,0,0,0.3",
+    "0.15,0.05,3,1,0.25,0,0,0,1",
+    "0.15,0.05,3,1,0.25,0,0,0,3",
+    "0.15,0.05,3,1,0.25,0,0,0,10",
+    "0.05,0.05,3,1,0.05,0,0,0,0.3",
+    "0.05,0.05,3,1,0.05,0,0,0,1",
+    "0.05,0.05,3,1,0.05,0,0,0,3",
+];
+
+/// The setting chosen from `UNCERTAINTY_GRID` on seeds 101–110 by the findings' rule
+/// (`GRID=bounded`): r₀ 0.05, fallback step 0.05, k_u 0.3.
+const BOUNDED: usize = 7;
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let from: u64 = args.first().map_or(1, |a| a.parse().expect("seed"));
@@ -506,10 +592,13 @@ fn main() {
         error_weight: 0.0,
         initial_error: 0.0,
         ensemble: 0,
+        uncertainty_weight: 0.0,
     };
     let grid: String = match std::env::var("GRID") {
         Err(_) => FINDINGS_GRID.join(";"),
         Ok(g) if g == "chosen" => FINDINGS_GRID[0].to_string(),
+        Ok(g) if g == "uncertainty" => UNCERTAINTY_GRID.join(";"),
+        Ok(g) if g == "bounded" => UNCERTAINTY_GRID[BOUNDED].to_string(),
         Ok(g) => g,
     };
     let grid: Vec<Settings> = Some(grid)
@@ -526,6 +615,7 @@ fn main() {
                         error_weight: v[5],
                         initial_error: v[6],
                         ensemble: v[7] as usize,
+                        uncertainty_weight: v.get(8).copied().unwrap_or(0.0),
                     }
                 })
                 .collect()
@@ -560,6 +650,9 @@ fn main() {
                 for (seed, r) in seeds.iter().zip(&runs) {
                     trace(*seed, r);
                 }
+                let first = 2 + settings.explorations;
+                calibration(name, &runs, first, first + 1);
+                calibration(name, &runs, first + 2, budget());
             }
         }
         println!(

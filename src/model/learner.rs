@@ -14,7 +14,9 @@
 //!    `error_weight` × the measured prediction error is at most the threshold (the
 //!    reference cost, e.g. the bare controller's measured cost, plus `margin`) and its
 //!    predicted cost is below the prediction for the best real θ; otherwise the fallback
-//!    optimizer's own model-free candidate is ([`Source::Fallback`]);
+//!    optimizer's own model-free candidate is ([`Source::Fallback`]). With
+//!    [`ModelBased::propose_bounded`] and `uncertainty_weight` k_u > 0, "predicted cost"
+//!    in steps 1 and 2 reads cost + k_u × the candidate's own uncertainty;
 //! 3. [`ModelBased::tell`] reports the real cost: the best real θ is updated, the fallback
 //!    is told only its own candidates, the error of the proposal's prediction is added to
 //!    the measured prediction error ([`ModelBased::prediction_error`]), and the trust
@@ -33,8 +35,18 @@
 //! margin is one measured number for every candidate (the RMS of real − predicted over
 //! the episodes run so far), not a per-candidate variance. On the AUV it did not lower the
 //! unsafe count (a constant margin does not tell a wrong candidate from a right one) and
-//! sent episodes to the fallback; the default keeps it off (k = 0). See the findings for
-//! the candidate-dependent bound the measurements point to.
+//! sent episodes to the fallback; the default keeps it off (k = 0).
+//!
+//! The candidate-dependent bound ([`ModelBased::propose_bounded`],
+//! `uncertainty_weight` k_u) adds the candidate's own uncertainty instead, e.g. the model's
+//! predictive variance summed along its imagined episode
+//! ([`imagine_episode_with_variance`](super::imagine_episode_with_variance)): the inner
+//! search minimises, and the screen judges, cost + k_u × uncertainty. PILCO and
+//! Black-DROPS minimise the *expected* cost under the model's uncertainty (a Gaussian
+//! process's, propagated through the dynamics or sampled); this bound is pessimistic, on a
+//! variance summed along the mean trajectory without propagation. On the AUV it lowered the
+//! unsafe episodes only a little and did not remove them (the findings); it is off by
+//! default (k_u = 0).
 //!
 //! # Footprint
 //! For the AUV (N = 18, coordinate-search fallback) the learner is 1,040 bytes and its model
@@ -78,6 +90,13 @@ pub struct ModelBasedConfig {
     /// The prediction error assumed before any is measured (≥ 0, finite); it counts as one
     /// measurement in the running root mean square, so it fades as real episodes come in.
     pub initial_error: f32,
+    /// k_u of the candidate-dependent screen (≥ 0, finite): with
+    /// [`ModelBased::propose_bounded`], the inner search minimises and the screen judges
+    /// J(θ) = predicted cost + k_u × the candidate's own [`Prediction::uncertainty`] (e.g. the
+    /// [`Imagined::deviation`](super::Imagined::deviation) of its imagined episode), so that
+    /// candidates that drive the model where it has no data are both avoided and screened
+    /// out. 0 (the default) ignores the uncertainty: J is the predicted cost.
+    pub uncertainty_weight: f32,
 }
 
 impl ModelBasedConfig {
@@ -93,6 +112,7 @@ impl ModelBasedConfig {
         inner_evaluations: 240,
         error_weight: 0.0,
         initial_error: 0.0,
+        uncertainty_weight: 0.0,
     };
 
     /// Checks every field (named in the error).
@@ -120,6 +140,10 @@ impl ModelBasedConfig {
         require(
             self.initial_error >= 0.0 && self.initial_error.is_finite(),
             "initial_error",
+        )?;
+        require(
+            self.uncertainty_weight >= 0.0 && self.uncertainty_weight.is_finite(),
+            "uncertainty_weight",
         )
     }
 }
@@ -127,6 +151,29 @@ impl ModelBasedConfig {
 impl Default for ModelBasedConfig {
     fn default() -> Self {
         Self::DEFAULT
+    }
+}
+
+/// The model's prediction of a candidate for [`ModelBased::propose_bounded`]: its cost and
+/// how uncertain the model is about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Prediction {
+    /// The predicted cost (finite, or the prediction counts as failed).
+    pub cost: f32,
+    /// The model's uncertainty about this candidate, in cost units once weighted by
+    /// [`ModelBasedConfig::uncertainty_weight`] (≥ 0 and finite, or the prediction counts as
+    /// failed when the weight is not 0), e.g. [`Imagined::deviation`](super::Imagined).
+    pub uncertainty: f32,
+}
+
+impl From<f32> for Prediction {
+    /// A point prediction: no uncertainty.
+    fn from(cost: f32) -> Self {
+        Self {
+            cost,
+            uncertainty: 0.0,
+        }
     }
 }
 
@@ -273,8 +320,33 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
     pub fn propose<R, O>(
         &mut self,
         rng: &mut R,
-        mut inner: impl FnMut(Bounds<N>, Vector<N>) -> Result<O, Error>,
+        inner: impl FnMut(Bounds<N>, Vector<N>) -> Result<O, Error>,
         mut predict: impl FnMut(&Vector<N>) -> Result<f32, Error>,
+    ) -> Result<Proposal<N>, Error>
+    where
+        R: RngCore + ?Sized,
+        O: Optimizer<N>,
+    {
+        self.propose_bounded(rng, inner, |theta| predict(theta).map(Prediction::from))
+    }
+
+    /// [`ModelBased::propose`] with a candidate-dependent bound: `predict(θ)` returns the
+    /// predicted cost and the model's uncertainty about θ ([`Prediction`]), typically from
+    /// [`imagine_episode_with_variance`](super::imagine_episode_with_variance). The inner
+    /// search minimises, and the screen judges, J(θ) = cost + k_u·uncertainty with
+    /// k_u = [`ModelBasedConfig::uncertainty_weight`]: a model candidate is proposed if
+    /// J + `error_weight` × [`ModelBased::prediction_error`] is at most the threshold and J
+    /// is below the best real θ's J. With k_u = 0 this is [`ModelBased::propose`].
+    ///
+    /// The bound is a pessimistic (upper-confidence) objective, as in safe exploration;
+    /// PILCO and Black-DROPS instead minimise the expected cost under the model's
+    /// uncertainty, which rewards exploring it. Here every candidate runs on the robot, so
+    /// the model's ignorance counts against it.
+    pub fn propose_bounded<R, O>(
+        &mut self,
+        rng: &mut R,
+        mut inner: impl FnMut(Bounds<N>, Vector<N>) -> Result<O, Error>,
+        mut predict: impl FnMut(&Vector<N>) -> Result<Prediction, Error>,
     ) -> Result<Proposal<N>, Error>
     where
         R: RngCore + ?Sized,
@@ -295,14 +367,28 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
         )?;
         let mut search = inner(trust, centre)?;
         let mut worst = f32::MIN;
-        let mut best_model: Option<(Vector<N>, f32)> = None;
+        let weight = self.config.uncertainty_weight;
+        // J(θ) = cost + k_u·uncertainty and the point cost, or None when either is unusable.
+        let mut objective = |theta: &Vector<N>| -> Option<(f32, f32)> {
+            let p = predict(theta).ok()?;
+            if !p.cost.is_finite() {
+                return None;
+            }
+            if weight == 0.0 {
+                return Some((p.cost, p.cost));
+            }
+            let j = p.cost + weight * p.uncertainty;
+            (p.uncertainty >= 0.0 && j.is_finite()).then_some((j, p.cost))
+        };
+        // The candidate's θ, J and point cost.
+        let mut best_model: Option<(Vector<N>, f32, f32)> = None;
         for _ in 0..self.config.inner_evaluations {
             let Ok(theta) = search.ask(rng) else { break };
-            let cost = match predict(&theta) {
-                Ok(c) if c.is_finite() => {
+            let cost = match objective(&theta) {
+                Some((c, point)) => {
                     worst = max(worst, c);
-                    if best_model.is_none_or(|(_, b)| c < b) {
-                        best_model = Some((theta, c));
+                    if best_model.is_none_or(|(_, b, _)| c < b) {
+                        best_model = Some((theta, c, point));
                     }
                     c
                 }
@@ -319,9 +405,7 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                 break;
             }
         }
-        let incumbent = self
-            .best
-            .map(|b| predict(&b.theta).ok().filter(|c| c.is_finite()));
+        let incumbent = self.best.map(|b| objective(&b.theta).map(|(j, _)| j));
         let threshold = self.reference.map(|c| c + self.config.margin);
         let pessimism = if self.config.error_weight > 0.0 {
             min(self.config.error_weight * self.prediction_error(), f32::MAX)
@@ -339,7 +423,7 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                 }
         };
         let (proposal, prediction) = match best_model {
-            Some((theta, predicted)) if passes(predicted) && self.bounds.contains(&theta) => (
+            Some((theta, j, predicted)) if passes(j) && self.bounds.contains(&theta) => (
                 Proposal {
                     theta,
                     source: Source::Model(predicted),
@@ -350,7 +434,10 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
                 let theta = self.fallback.ask(rng)?;
                 // Predicted too, so that the model's error is measured on every episode,
                 // not only on those it chose.
-                let predicted = predict(&theta).ok().filter(|c| c.is_finite());
+                let predicted = predict(&theta)
+                    .ok()
+                    .map(|p| p.cost)
+                    .filter(|c| c.is_finite());
                 (
                     Proposal {
                         theta,
@@ -600,6 +687,95 @@ mod tests {
     }
 
     #[test]
+    fn propose_is_propose_bounded_without_uncertainty() {
+        for weight in [0.0, 5.0] {
+            let config = ModelBasedConfig {
+                uncertainty_weight: weight,
+                ..ModelBasedConfig::DEFAULT
+            };
+            let (mut a, mut b) = (learner(config), learner(config));
+            for l in [&mut a, &mut b] {
+                l.record(Vector::zeros(), 0.29).unwrap();
+                l.set_reference(0.29).unwrap();
+            }
+            let (mut ra, mut rb) = (rng(3), rng(3));
+            for _ in 0..4 {
+                let p = a.propose(&mut ra, inner, |t| Ok(real(t))).unwrap();
+                let q = b
+                    .propose_bounded(&mut rb, inner, |t| Ok(Prediction::from(real(t))))
+                    .unwrap();
+                assert_eq!(p, q);
+                a.tell(real(&p.theta)).unwrap();
+                b.tell(real(&q.theta)).unwrap();
+                assert_eq!(a, b);
+            }
+        }
+    }
+
+    /// A model that is right near θ = 0, where the ticks were recorded, and wrongly
+    /// optimistic away from it; its uncertainty grows with the distance.
+    fn optimistic(t: &Vector<2>) -> Result<Prediction, Error> {
+        Ok(Prediction {
+            cost: real(t) - 2.0 * t.norm_squared(),
+            uncertainty: 3.0 * t.norm_squared(),
+        })
+    }
+
+    #[test]
+    fn the_uncertainty_weight_keeps_the_search_near_the_data_and_screens() {
+        let propose = |weight: f32, reference: f32| {
+            let mut l = learner(ModelBasedConfig {
+                initial_radius: 1.0,
+                uncertainty_weight: weight,
+                ..ModelBasedConfig::DEFAULT
+            });
+            l.record(Vector::zeros(), real(&Vector::zeros())).unwrap();
+            l.set_reference(reference).unwrap();
+            l.propose_bounded(&mut rng(4), inner, optimistic).unwrap()
+        };
+        let bare = real(&Vector::zeros());
+        // k_u = 0 exploits the optimism to the box's corner, whose real cost is worse
+        // than the bare θ's.
+        let blind = propose(0.0, bare);
+        assert!(matches!(blind.source, Source::Model(_)));
+        assert!(blind.theta.amax() > 0.9, "{}", blind.theta);
+        assert!(real(&blind.theta) > bare);
+        // k_u = 1: J = real + |θ|², minimised at (0.25, −0.1), better than bare for real.
+        let bounded = propose(1.0, bare);
+        let Source::Model(predicted) = bounded.source else {
+            panic!("{bounded:?}")
+        };
+        assert!((bounded.theta - Vector::<2>::new(0.25, -0.1)).amax() < 0.05);
+        assert!(real(&bounded.theta) < bare);
+        // The source carries the point prediction, not J.
+        assert_eq!(predicted, optimistic(&bounded.theta).unwrap().cost);
+        // The screen judges J: with the threshold just below the bound's J, fallback.
+        let j = |t: &Vector<2>| {
+            let p = optimistic(t).unwrap();
+            p.cost + p.uncertainty
+        };
+        assert_eq!(
+            propose(1.0, j(&bounded.theta) - 0.01).source,
+            Source::Fallback
+        );
+        // An unusable uncertainty (negative, NaN) with k_u > 0 is a failed prediction.
+        let mut l = learner(ModelBasedConfig {
+            uncertainty_weight: 1.0,
+            ..ModelBasedConfig::DEFAULT
+        });
+        l.record(Vector::zeros(), bare).unwrap();
+        let p = l
+            .propose_bounded(&mut rng(5), inner, |t| {
+                Ok(Prediction {
+                    cost: real(t),
+                    uncertainty: f32::NAN,
+                })
+            })
+            .unwrap();
+        assert_eq!(p.source, Source::Fallback);
+    }
+
+    #[test]
     fn refuses_bad_tells_and_records_without_change() {
         let mut l = learner(ModelBasedConfig::DEFAULT);
         assert_eq!(l.tell(1.0), Err(Error::NoPendingAsk));
@@ -687,6 +863,20 @@ mod tests {
                 },
                 "initial_error",
             ),
+            (
+                ModelBasedConfig {
+                    uncertainty_weight: -0.1,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "uncertainty_weight",
+            ),
+            (
+                ModelBasedConfig {
+                    uncertainty_weight: f32::NAN,
+                    ..ModelBasedConfig::DEFAULT
+                },
+                "uncertainty_weight",
+            ),
         ] {
             assert_eq!(config.validate(), Err(Error::InvalidParameter(field)));
         }
@@ -703,11 +893,14 @@ mod tests {
             seed in any::<u64>(),
             error_weight in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
             initial_error in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
+            uncertainty_weight in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
+            uncertainties in proptest::collection::vec(any::<f32>(), 1..40),
         ) {
             let mut l = learner(ModelBasedConfig {
                 inner_evaluations: 30,
                 error_weight,
                 initial_error,
+                uncertainty_weight,
                 ..ModelBasedConfig::DEFAULT
             });
             let _ = l.set_reference(costs[0]);
@@ -715,9 +908,12 @@ mod tests {
             let mut best = f32::INFINITY;
             for (k, cost) in costs.iter().enumerate() {
                 let mut i = k;
-                let p = l.propose(&mut r, inner, |_| {
+                let p = l.propose_bounded(&mut r, inner, |_| {
                     i += 1;
-                    Ok(predictions[i % predictions.len()])
+                    Ok(Prediction {
+                        cost: predictions[i % predictions.len()],
+                        uncertainty: uncertainties[i % uncertainties.len()],
+                    })
                 });
                 let Ok(p) = p else { break };
                 prop_assert!(l.bounds.contains(&p.theta));

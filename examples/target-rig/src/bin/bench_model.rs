@@ -17,6 +17,9 @@
 //! * `model_control`: one control tick of the adapter feeding the model (the fit included);
 //! * `imagined_episode`: one `imagine_episode` of 240 ticks with the AUV controller and the
 //!   survey cost;
+//! * `imagined_episode_variance`: the same episode by `imagine_episode_with_variance`, which
+//!   also sums the model's leverage zᵀPz along it (what `ModelBased::propose_bounded` with
+//!   an `uncertainty_weight` pays per imagined episode);
 //! * `model_propose`: one `ModelBased::propose` with the recommended budget (240 imagined
 //!   episodes, the CMA-ES's asks and tells, the screen's prediction of the best real θ):
 //!   the whole between-episode update.
@@ -31,7 +34,7 @@ use ctrl_adapt::controller::{Adapter, Unguarded};
 use ctrl_adapt::cost::SurveyCost;
 use ctrl_adapt::model::{
     ModelBased, ModelBasedConfig, ModelConfig, OnlineModel, Regressors, RlsModel, Source,
-    imagine_episode,
+    imagine_episode, imagine_episode_with_variance,
 };
 use ctrl_adapt::optimizer::unit_f32;
 use ctrl_adapt::{Bounds, Cmaes, CmaesConfig, CoordinateSearch, Error, Vector};
@@ -222,6 +225,25 @@ fn run(counter: &mut Counter) -> Result<(), Error> {
         failed += u32::from(cost.is_err());
         defmt::info!("footprint: sample imagined_episode = {=u32}", count);
         defmt::info!("imagined episode {=u32}: {=?}", k, cost.ok());
+        let (imagined, count) = counter.measure(|| {
+            imagine_episode_with_variance(
+                fed.model(),
+                fed.map(),
+                &begin,
+                TICKS,
+                auv::DT,
+                &mut controller,
+                &theta,
+                &mut shaper,
+                observation,
+            )
+        });
+        // The same episode: the same cost, bit for bit.
+        failed += u32::from(imagined.map(|i| i.cost).ok() != cost.ok());
+        defmt::info!(
+            "footprint: sample imagined_episode_variance = {=u32}",
+            count
+        );
     }
     for _ in 0..PROPOSALS {
         let (mut controller, mut shaper) = (*adapter.controller(), *adapter.shaper());

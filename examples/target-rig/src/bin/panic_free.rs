@@ -16,8 +16,11 @@
 //! * the plant model and the model-based learner: `RlsModel<6, 3, 14>` with features of its
 //!   own (`update` with wild ticks, `predict`, `episode_error`, `validate`), fed by the AUV
 //!   adapter (`Adapter::with_model`, `OnlineModel`), `imagine_episode` with the AUV
-//!   controller and the survey cost, and `ModelBased<CoordinateSearch<18>, 18>` (`propose`
-//!   with an inner `Cmaes<18, 12>` and predictions that are sometimes NaN or errors,
+//!   controller and the survey cost (and `imagine_episode_with_variance`, the model's
+//!   `predictive_variance` and `predict_with_leverage`), and
+//!   `ModelBased<CoordinateSearch<18>, 18>` (`propose` and `propose_bounded` with an
+//!   uncertainty weight, with an inner `Cmaes<18, 12>` and predictions that are sometimes
+//!   NaN or errors,
 //!   `tell` and `record` with wild costs, `set_reference`, the accessors);
 //! * the PIL firmware's path: frame decoding of arbitrary bytes, frame encoding, reading and
 //!   writing over an embedded-io port, the session and the AUV learner (`AuvLearner` with
@@ -39,7 +42,8 @@ use ctrl_adapt::controller::{
 };
 use ctrl_adapt::cost::{Shaper, SurveyCost};
 use ctrl_adapt::model::{
-    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, OnlineModel, RlsModel, imagine_episode,
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, OnlineModel, Prediction, RlsModel,
+    imagine_episode, imagine_episode_with_variance,
 };
 use ctrl_adapt::optimizer::{normal_pair_f32, unit_f32};
 use ctrl_adapt::{
@@ -497,6 +501,8 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
         );
         black_box(model.update(&features, &x, &u, &next).is_ok());
         black_box(model.predict(&features, &x, &u));
+        black_box(model.predictive_variance(&features, &x, &u));
+        black_box(model.predict_with_leverage(&features, &x, &u));
     }
     black_box((
         model.one_step_error(),
@@ -527,6 +533,7 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
     let config = ModelBasedConfig {
         inner_evaluations: black_box(24),
         margin: black_box(0.5),
+        uncertainty_weight: black_box(0.5),
         ..ModelBasedConfig::DEFAULT
     };
     let Ok(mut learner) = ModelBased::try_new(bounds, fallback, config) else {
@@ -552,23 +559,49 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
     let (mut controller, mut shaper) = (*adapter.controller(), *adapter.shaper());
     let mut draws = Rng::seed_from_u64(black_box(9));
     let ticks = black_box(12);
-    for _ in 0..16 {
-        let predict = |theta: &Vector<N>| match draws.next_u32() % 4 {
-            0 => Ok(f32::from_bits(draws.next_u32())),
-            1 => Err(ctrl_adapt::Error::NonFinite("prediction")),
-            _ => imagine_episode(
-                &model,
-                &features,
-                &wild_state::<6>(&mut draws),
-                ticks,
-                black_box(0.1),
-                &mut controller,
-                theta,
-                &mut shaper,
-                |x| Vector::<3>::new(x[0], x[1], x[2]),
-            ),
+    for round in 0..16 {
+        let proposal = if black_box(round % 2 == 0) {
+            let predict = |theta: &Vector<N>| match draws.next_u32() % 4 {
+                0 => Ok(f32::from_bits(draws.next_u32())),
+                1 => Err(ctrl_adapt::Error::NonFinite("prediction")),
+                _ => imagine_episode(
+                    &model,
+                    &features,
+                    &wild_state::<6>(&mut draws),
+                    ticks,
+                    black_box(0.1),
+                    &mut controller,
+                    theta,
+                    &mut shaper,
+                    |x| Vector::<3>::new(x[0], x[1], x[2]),
+                ),
+            };
+            learner.propose(rng, inner, predict)
+        } else {
+            let bounded = |theta: &Vector<N>| match draws.next_u32() % 4 {
+                0 => Ok(Prediction {
+                    cost: f32::from_bits(draws.next_u32()),
+                    uncertainty: f32::from_bits(draws.next_u32()),
+                }),
+                1 => Err(ctrl_adapt::Error::NonFinite("prediction")),
+                _ => imagine_episode_with_variance(
+                    &model,
+                    &features,
+                    &wild_state::<6>(&mut draws),
+                    ticks,
+                    black_box(0.1),
+                    &mut controller,
+                    theta,
+                    &mut shaper,
+                    |x| Vector::<3>::new(x[0], x[1], x[2]),
+                )
+                .map(|i| Prediction {
+                    cost: i.cost,
+                    uncertainty: i.deviation(),
+                }),
+            };
+            learner.propose_bounded(rng, inner, bounded)
         };
-        let proposal = learner.propose(rng, inner, predict);
         black_box(proposal.is_ok());
         let theta = proposal.map_or(Vector::zeros(), |p| p.theta);
         black_box(learner.record(theta, 1.0).is_err());
