@@ -44,6 +44,18 @@ pub enum Origin {
     Fallback,
 }
 
+impl Origin {
+    /// Its letter in the examples' traces: b, e, m, f.
+    pub fn letter(self) -> char {
+        match self {
+            Self::Bare => 'b',
+            Self::Explore => 'e',
+            Self::Model => 'm',
+            Self::Fallback => 'f',
+        }
+    }
+}
+
 /// One real episode, as a [`Plant`] reports it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Real {
@@ -112,7 +124,7 @@ impl<const P: usize> Settings<P> {
 
 /// What one learning run did, episode by episode.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Run<const P: usize> {
+pub struct Run {
     /// The real costs.
     pub costs: Vec<f32>,
     /// Where each θ came from.
@@ -125,12 +137,12 @@ pub struct Run<const P: usize> {
     /// and the exploration episodes).
     pub errors: Vec<f32>,
     /// The best real u.
-    pub best: Option<Vector<P>>,
+    pub best: Option<Vec<f32>>,
     /// Time spent in the learner (the proposals with their imagined episodes, and tell).
     pub learner_time: Duration,
 }
 
-impl<const P: usize> Run<P> {
+impl Run {
     /// The episodes whose θ came from `origin`.
     pub fn count(&self, origin: Origin) -> usize {
         self.origin.iter().filter(|o| **o == origin).count()
@@ -157,7 +169,7 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
     settings: &Settings<P>,
     budget: usize,
     rng: &mut impl RngCore,
-) -> Result<Run<P>, Error> {
+) -> Result<Run, Error> {
     let bare = plant.episode(&Vector::zeros());
     let mut explored = Vec::with_capacity(settings.explorations);
     let mut squared = 0.0f32;
@@ -227,7 +239,7 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
             break;
         }
     }
-    run.best = learner.best().map(|b| b.theta);
+    run.best = learner.best().map(|b| to_vec(&b.theta));
     Ok(run)
 }
 
@@ -657,9 +669,9 @@ impl<M, const P: usize> Plant<P> for TrialPlant<'_, M, P> {
 /// inner `Cmaes` with λ = 12 / 14 / 14 and 240 / 60 / 240 predictions on the AUV / the
 /// hopper / the arm; fallback [`auv_fallback`] with step 0.25, [`hopper_fallback`],
 /// [`arm_fallback`]; the model [`AuvModels`] without an ensemble, [`HopperModel`],
-/// [`ArmModel`]). The returned θ is the best real one. `None` on a synthetic task (no plant
-/// to model) or if the learner cannot be built (a non-finite bare cost).
-pub fn run_on_trial(trial: &mut Trial, budget: u32, seed: u64) -> Option<RunReport> {
+/// [`ArmModel`]), and the θ it returns, the best real one. `None` on a synthetic task (no
+/// plant to model) or if the learner cannot be built (a non-finite bare cost).
+pub fn run_on_trial(trial: &mut Trial, budget: u32, seed: u64) -> Option<(Run, Vec<f32>)> {
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
     let episodes = budget as usize;
     match trial.task() {
@@ -682,10 +694,8 @@ pub fn run_on_trial(trial: &mut Trial, budget: u32, seed: u64) -> Option<RunRepo
                 &mut plant, bounds, fallback, inner, &settings, episodes, &mut rng,
             );
             let run = run.ok()?;
-            Some(report(
-                &run,
-                to_vec(&run.best.unwrap_or_else(Vector::zeros)),
-            ))
+            let returned = run.best.clone().unwrap_or_else(|| vec![0.0; auv_task::P]);
+            Some((run, returned))
         }
         Task::Hopper => {
             let mut plant = TrialPlant {
@@ -711,8 +721,8 @@ pub fn run_on_trial(trial: &mut Trial, budget: u32, seed: u64) -> Option<RunRepo
                 &mut rng,
             );
             let run = run.ok()?;
-            let best = run.best.unwrap_or_else(Vector::zeros);
-            Some(report(&run, to_vec(&hopper_theta(&best))))
+            let best = best_u::<HP>(&run);
+            Some((run, to_vec(&hopper_theta(&best))))
         }
         Task::Arm => {
             let model = ArmModel::default();
@@ -736,20 +746,29 @@ pub fn run_on_trial(trial: &mut Trial, budget: u32, seed: u64) -> Option<RunRepo
                 &mut plant, bounds, fallback, inner, &settings, episodes, &mut rng,
             );
             let run = run.ok()?;
-            let best = run.best.unwrap_or_else(Vector::zeros);
-            Some(report(&run, to_vec(&plant.model.theta(&best))))
+            let best = best_u::<PARAMS>(&run);
+            Some((run, to_vec(&plant.model.theta(&best))))
         }
         Task::Sphere | Task::Ackley => None,
     }
 }
 
-/// A learning run as the oracle reports it.
-fn report<const P: usize>(run: &Run<P>, returned: Vec<f32>) -> RunReport {
-    RunReport {
+/// The run's best u (0 before any).
+fn best_u<const P: usize>(run: &Run) -> Vector<P> {
+    run.best
+        .as_ref()
+        .filter(|b| b.len() == P)
+        .map_or_else(Vector::zeros, |b| Vector::from_fn(|i, _| b[i]))
+}
+
+/// The oracle's report of the learner on `trial` ([`run_on_trial`]).
+pub fn report_on_trial(trial: &mut Trial, budget: u32, seed: u64) -> Option<RunReport> {
+    let (run, returned) = run_on_trial(trial, budget, seed)?;
+    Some(RunReport {
         optimizer_ns: run.learner_time.as_nanos() as f64 / run.costs.len().max(1) as f64,
-        costs: run.costs.clone(),
-        returned,
         unsafe_episodes: run.flagged.iter().filter(|f| **f).count(),
         fallback_episodes: Some(run.count(Origin::Fallback)),
-    }
+        costs: run.costs,
+        returned,
+    })
 }

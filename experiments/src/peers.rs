@@ -611,7 +611,7 @@ pub fn line_bo_config(trial: &Trial, budget: u32, safe: bool) -> Option<LineBoCo
 /// synthetic task, which has no plant to model).
 pub fn run_library(method: &str, trial: &mut Trial, budget: u32, seed: u64) -> Option<RunReport> {
     if method == "model" {
-        return crate::model_learner::run_on_trial(trial, budget, seed);
+        return crate::model_learner::report_on_trial(trial, budget, seed);
     }
     match trial.task() {
         // λ = 4 + ⌊3 ln n⌋, CMA-ES's default population.
