@@ -772,3 +772,133 @@ pub fn report_on_trial(trial: &mut Trial, budget: u32, seed: u64) -> Option<RunR
         returned,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::peers::{Conditions, run_library};
+
+    /// A plant with the cost |θ − 0.3|² per coordinate and a model that is either exact or
+    /// always fails.
+    struct Quadratic {
+        exact: bool,
+        episodes: usize,
+    }
+
+    impl Plant<2> for Quadratic {
+        fn episode(&mut self, u: &Vector<2>) -> Real {
+            self.episodes += 1;
+            Real {
+                cost: self.predict_exactly(u),
+                flagged: false,
+            }
+        }
+
+        fn predict(&self, u: &Vector<2>) -> Result<f32, Error> {
+            if self.exact {
+                Ok(self.predict_exactly(u))
+            } else {
+                Err(Error::NonFinite("cost"))
+            }
+        }
+    }
+
+    impl Quadratic {
+        fn predict_exactly(&self, u: &Vector<2>) -> f32 {
+            (u - Vector::repeat(0.3)).norm_squared() + 1.0
+        }
+    }
+
+    fn learn_on(exact: bool, budget: usize) -> (Run, usize) {
+        let mut plant = Quadratic { exact, episodes: 0 };
+        let fallback = CoordinateSearch::try_new(
+            unit_box(),
+            Vector::zeros(),
+            CoordinateConfig {
+                initial_step: 0.1,
+                max_evaluations: budget as u32,
+                ..CoordinateConfig::DEFAULT
+            },
+        )
+        .unwrap();
+        let mut rng = Xoshiro128PlusPlus::seed_from_u64(7);
+        let settings = Settings::chosen(50);
+        let inner = inner_cmaes::<2, 6>(50);
+        let run = learn(
+            &mut plant,
+            unit_box(),
+            fallback,
+            inner,
+            &settings,
+            budget,
+            &mut rng,
+        );
+        (run.unwrap(), plant.episodes)
+    }
+
+    /// The loop's order and bookkeeping (seed 7): the bare episode, 3 explorations inside
+    /// ±0.05, then proposals up to the budget, one entry per real episode in every column.
+    /// With an exact model of a quadratic every proposal passes the screen and the best
+    /// cost falls below the bare one; with a model that always fails every proposal is
+    /// the fallback's.
+    #[test]
+    fn the_loop_runs_bare_explorations_then_proposals() {
+        for exact in [true, false] {
+            let (run, episodes) = learn_on(exact, 12);
+            assert_eq!(episodes, 12);
+            assert_eq!(run.costs.len(), 12);
+            assert_eq!(run.origin.len(), 12);
+            assert_eq!(run.predicted.len(), 12);
+            assert_eq!(run.errors.len(), 12);
+            assert_eq!(run.origin[0], Origin::Bare);
+            assert_eq!(run.costs[0], 1.0 + 2.0 * 0.09);
+            assert!(run.origin[1..4].iter().all(|o| *o == Origin::Explore));
+            assert_eq!(run.count(Origin::Explore), 3);
+            let proposals = run.count(Origin::Model) + run.count(Origin::Fallback);
+            assert_eq!(proposals, 8);
+            if exact {
+                // The model's candidates run until it can no longer predict an improvement
+                // on the best real θ (then the fallback proposes).
+                assert_eq!(run.origin[4], Origin::Model);
+                let best = run.costs.iter().copied().fold(f32::INFINITY, f32::min);
+                assert!(best < 1.01, "{best} {:?} {:?}", run.costs, run.origin);
+            } else {
+                assert_eq!(run.count(Origin::Fallback), 8);
+                assert!(run.predicted.iter().all(Option::is_none));
+            }
+        }
+    }
+
+    /// The oracle's `model` method on the AUV (seed 1, 6 episodes): its first episode is
+    /// the bare controller's, of the trial's own start cost, every episode is counted by
+    /// the trial, the fallback episodes are reported, and the returned θ is the best
+    /// episode's. The synthetic tasks have no model.
+    #[test]
+    fn the_oracle_runs_the_learner_on_a_trial() {
+        let mut trial = Trial::new(Task::Auv, 1);
+        let bare = trial.start_cost().unwrap();
+        let report = run_library("model", &mut trial, 6, 1).unwrap();
+        assert_eq!(report.costs.len(), 6);
+        assert_eq!(trial.evaluations(), 6);
+        assert_eq!(report.costs[0], bare);
+        assert!(report.fallback_episodes.is_some_and(|f| f <= 2));
+        // The returned θ, re-run on a fresh copy of the trial's episodes, is a real θ.
+        assert_eq!(report.returned.len(), auv_task::P);
+        assert!(report.returned.iter().all(|v| v.abs() <= 1.0));
+        assert!(run_library("model", &mut Trial::new(Task::Sphere, 1), 6, 1).is_none());
+    }
+
+    /// `auv-rotated` is the AUV with the current turned by 45°: its bare cost is that of
+    /// the `auv` task in conditions turned by 45°, and not the nominal one.
+    #[test]
+    fn the_rotated_task_turns_the_current_by_45_degrees() {
+        let rotated = Trial::new(Task::AuvRotated, 2).start_cost();
+        let turned = Conditions::parse("rotated:45").unwrap();
+        assert_eq!(
+            rotated,
+            Trial::with_conditions(Task::Auv, 2, turned).start_cost()
+        );
+        assert_ne!(rotated, Trial::new(Task::Auv, 2).start_cost());
+        assert_eq!(Task::parse("auv-rotated"), Some(Task::AuvRotated));
+    }
+}
