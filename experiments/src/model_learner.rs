@@ -274,7 +274,7 @@ pub type AuvMap = AffineWith<4, fn(&Vector<6>, &Vector<3>) -> Vector<4>>;
 
 /// The bounded-drag features of `model_auv` ([depth above the current layer], |v|·v per
 /// axis with v clamped to the vehicle's reach ±0.6 m/s).
-fn bounded_drag(x: &Vector<6>, _: &Vector<3>) -> Vector<4> {
+pub fn bounded_drag(x: &Vector<6>, _: &Vector<3>) -> Vector<4> {
     const LAYER: f32 = 2.0;
     const TARGET_DEPTH: f32 = 4.8;
     let q = |v: f32| {
