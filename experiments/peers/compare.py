@@ -27,6 +27,7 @@ episodes, and its rows count the episodes its fallback proposed).
     cargo build --release -p experiments --bin oracle
     .venv-peers/bin/python experiments/peers/compare.py --tasks auv --seeds 1-20
     .venv-peers/bin/python experiments/peers/compare.py --table a.json b.json   # merge runs
+    python3 experiments/peers/compare.py --table a.json --paired model   # seed by seed
 
 The library through its Python package, like a peer (`py-cmaes`, `py-crs`, `py-rockstar`:
 the package installed in the same environment, `pip install ./python`):
@@ -42,6 +43,7 @@ import argparse
 import contextlib
 import io
 import json
+import math
 import multiprocessing
 import os
 import statistics
@@ -388,6 +390,46 @@ def table(results, tasks, methods):
     return "\n".join(lines)
 
 
+def sign_test(wins, losses):
+    """The two-sided sign test's p-value of `wins` against `losses` (ties left out)."""
+    n, k = wins + losses, min(wins, losses)
+    if n == 0:
+        return 1.0
+    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n
+    return min(1.0, 2 * tail)
+
+
+def paired(results, tasks, methods, of):
+    """Seed by seed, `of` against every other method: on how many seeds its episodes to
+    success (a seed without success counts as beyond the budget) and its deployed cost are
+    lower, equal, higher, with the sign test's p-value; only seeds both methods ran."""
+    lines = [
+        f"| task | {of} against | seeds | episodes to success: fewer / equal / more (p) "
+        "| deployed cost: lower / equal / higher (p) |",
+        "|---|---|---|---|---|",
+    ]
+    key = lambda r: r["first"] if r["first"] is not None else float("inf")  # noqa: E731
+    for task in tasks:
+        mine = {r["seed"]: r for r in results if r["task"] == task and r["method"] == of}
+        for method in methods:
+            if method == of:
+                continue
+            theirs = {r["seed"]: r for r in results if r["task"] == task and r["method"] == method}
+            both = sorted(set(mine) & set(theirs))
+            if not both:
+                continue
+            cells = []
+            for field in (key, lambda r: r["deployed"]):
+                a = [field(mine[s]) for s in both]
+                b = [field(theirs[s]) for s in both]
+                lower = sum(x < y for x, y in zip(a, b))
+                higher = sum(x > y for x, y in zip(a, b))
+                equal = len(both) - lower - higher
+                cells.append(f"{lower} / {equal} / {higher} ({sign_test(lower, higher):.2g})")
+            lines.append(f"| {task} | {method} | {len(both)} | {cells[0]} | {cells[1]} |")
+    return "\n".join(lines)
+
+
 def seeds(text):
     if "-" in text:
         a, b = text.split("-")
@@ -409,6 +451,11 @@ def main():
         metavar="JSON",
         help="print the table of earlier runs' --json files (merged; no run)",
     )
+    p.add_argument(
+        "--paired",
+        metavar="METHOD",
+        help="with --table: also METHOD against every other method, seed by seed",
+    )
     a = p.parse_args()
     if a.table:
         # A (task, method, seed) saved twice (overlapping runs) counts once: it is the same run.
@@ -421,6 +468,9 @@ def main():
         known = LIBRARY + BINDING + PEERS
         methods = [m for m in known if any(r["method"] == m for r in results)]
         print(table(results, tasks, methods))
+        if a.paired:
+            print()
+            print(paired(results, tasks, methods, a.paired))
         return
     if not os.path.exists(ORACLE):
         sys.exit("build the oracle first: cargo build --release -p experiments --bin oracle")
