@@ -534,13 +534,6 @@ impl ArmModel {
         }
     }
 
-    /// One real episode of θ on the arm, fitted: its cost.
-    pub fn reach(&mut self, theta: &Vector<PARAMS>) -> f32 {
-        let (states, forcings, terms) = self.arm.ticks(theta);
-        self.fit(&states, &forcings);
-        terms.total() as f32
-    }
-
     /// The arm's cost of θ on the model: the forcing of θ drives the model from the start;
     /// the via-point distance at 0.3 s and the weighted accelerations as `host_tests::arm`.
     pub fn predict(&self, theta: &Vector<PARAMS>) -> Result<f32, Error> {
