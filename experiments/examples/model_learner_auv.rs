@@ -33,6 +33,7 @@ use ctrl_adapt::model::{
     imagine_episode,
 };
 use ctrl_adapt::optimizer::{Bounds, Cmaes, CmaesConfig, Optimizer, Vector};
+use experiments::model_learner::bounded_drag;
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
 use host_tests::{median, spearman};
@@ -42,8 +43,6 @@ use rand_xoshiro::Xoshiro128PlusPlus;
 const DT: f32 = 0.1;
 const BUDGET: usize = 15;
 const INNER_BUDGET: u32 = 240;
-const LAYER: f32 = 2.0;
-const TARGET_DEPTH: f32 = 4.8;
 const R: usize = 14;
 
 struct Episode {
@@ -79,20 +78,6 @@ fn uniform(rng: &mut impl RngCore, half_width: f32) -> Vector<P> {
         let unit = (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
         half_width * (2.0 * unit - 1.0)
     })
-}
-
-/// The bounded-drag regressors of `model_auv` (R = 14).
-fn features(x: &Vector<6>, _: &Vector<3>) -> Vector<4> {
-    let q = |v: f32| {
-        let v = v.clamp(-0.6, 0.6);
-        v.abs() * v
-    };
-    let layer = if TARGET_DEPTH - x[2] > LAYER {
-        1.0
-    } else {
-        0.0
-    };
-    Vector::<4>::new(layer, q(x[3]), q(x[4]), q(x[5]))
 }
 
 /// `imagine_episode`'s survey cost of θ from `start`; 100 if the rollout diverges.
@@ -145,7 +130,7 @@ struct Run {
 }
 
 fn learn(seed: u64, settings: Settings) -> Run {
-    let map = AffineWith::new(features);
+    let map = AffineWith::new(bounded_drag);
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
     let mut auv = plant(AuvConfig::REAL, seed);
     let mut model = RlsModel::<6, 3, R>::try_new(ModelConfig::DEFAULT).unwrap();
@@ -262,7 +247,7 @@ fn learn(seed: u64, settings: Settings) -> Run {
 /// The same loop through the library's `ModelBased` (the chosen setting only): its rows
 /// must equal the prototype's.
 fn learn_with_library(seed: u64, settings: Settings) -> Run {
-    let map = AffineWith::new(features);
+    let map = AffineWith::new(bounded_drag);
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
     let mut auv = plant(AuvConfig::REAL, seed);
     let mut model = RlsModel::<6, 3, R>::try_new(ModelConfig::DEFAULT).unwrap();

@@ -18,6 +18,10 @@
 //! uncertainty of the model's own proposals with their |real − predicted| and with real −
 //! predicted, for the first two proposals and for the later ones.
 //!
+//! The learner's loop, the model and its imagined episodes are `experiments::model_learner`'s
+//! (`learn`, `AuvModels`), shared with the oracle's `model` method; the episodes are this
+//! example's own (the task's controller and `SurveyCost` ticked directly).
+//!
 //! Per seed s and current: the disturbed real AUV (seed s), RNG seed s, 15 real episodes:
 //! episode 1 is the bare PD (θ = 0, cost c₀); then `explorations` episodes with θ uniform in
 //! a small box around zero (half-width `explore` on the weights of the position error,
@@ -47,17 +51,15 @@
 
 use ctrl_adapt::controller::Controller;
 use ctrl_adapt::cost::{Shaper, SurveyCost};
-use ctrl_adapt::model::{
-    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Prediction, Regressors, RlsModel,
-    Source, imagine_episode_with_variance,
-};
-use ctrl_adapt::optimizer::{
-    Bounds, Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector,
+use ctrl_adapt::model::{ModelBasedConfig, Prediction};
+use ctrl_adapt::optimizer::{CoordinateSearch, Error, Optimizer, Vector};
+use experiments::model_learner::{
+    self, AuvModels, InitialError, Plant, Real, auv_fallback, inner_cmaes,
 };
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, P, RADIUS, plant, policy_state, true_error};
 use host_tests::{median, spearman};
-use rand_core::{RngCore, SeedableRng};
+use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
 const DT: f32 = 0.1;
@@ -66,9 +68,6 @@ fn budget() -> usize {
     std::env::var("BUDGET").map_or(15, |b| b.parse().expect("BUDGET"))
 }
 const INNER_BUDGET: u32 = 240;
-const LAYER: f32 = 2.0;
-const TARGET_DEPTH: f32 = 4.8;
-const R: usize = 14;
 
 struct Episode {
     states: Vec<Vector<6>>,
@@ -102,27 +101,6 @@ fn run(theta: &Vector<P>, auv: &mut Auv) -> Episode {
 /// those of the velocity (θ[6a + 3..6]).
 fn scale(velocity: f32) -> Vector<P> {
     Vector::from_fn(|i, _| if i % 6 < 3 { 1.0 } else { velocity })
-}
-
-fn uniform(rng: &mut impl RngCore, half_width: &Vector<P>) -> Vector<P> {
-    Vector::from_fn(|i, _| {
-        let unit = (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
-        half_width[i] * (2.0 * unit - 1.0)
-    })
-}
-
-/// The bounded-drag regressors of `model_auv` (R = 14).
-fn features(x: &Vector<6>, _: &Vector<3>) -> Vector<4> {
-    let q = |v: f32| {
-        let v = v.clamp(-0.6, 0.6);
-        v.abs() * v
-    };
-    let layer = if TARGET_DEPTH - x[2] > LAYER {
-        1.0
-    } else {
-        0.0
-    };
-    Vector::<4>::new(layer, q(x[3]), q(x[4]), q(x[5]))
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -173,159 +151,89 @@ struct Run {
     bare_mean: f32,
     costs: Vec<f32>,
     source: Vec<char>,
-    predicted: Vec<Option<Prediction>>,
+    predicted: Vec<Option<f32>>,
+    /// The model's uncertainty about each proposal.
+    uncertainty: Vec<Option<f32>>,
     errors: Vec<f32>,
 }
 
 fn fallback(settings: &Settings) -> CoordinateSearch<P> {
-    let config = CoordinateConfig {
-        max_evaluations: budget() as u32,
-        ..auv_task::local_config(budget() as u32)
-    };
-    CoordinateSearch::try_with_steps(
-        auv_task::bounds(),
-        Vector::zeros(),
+    auv_fallback(
         scale(settings.velocity_scale) * settings.fallback_step,
-        config,
+        budget() as u32,
     )
-    .unwrap()
 }
 
+/// The real AUV with its models (`experiments::model_learner::AuvModels`), episodes by
+/// [`run`].
+struct Surveyed {
+    auv: Auv,
+    models: AuvModels,
+}
+
+impl Plant<P> for Surveyed {
+    fn episode(&mut self, theta: &Vector<P>) -> Real {
+        let e = run(theta, &mut self.auv);
+        self.models.fit(&e.states, &e.commands);
+        Real {
+            cost: e.cost,
+            flagged: false,
+        }
+    }
+
+    fn predict(&self, theta: &Vector<P>) -> Result<f32, Error> {
+        self.models.predict(theta)
+    }
+
+    fn prediction(&self, theta: &Vector<P>) -> Result<Prediction, Error> {
+        self.models.prediction(theta)
+    }
+}
+
+/// The learner's loop (`experiments::model_learner::learn`): the bare episode, the
+/// explorations (each predicted by the models fitted before it ran), then the proposals.
 fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
-    let map = AffineWith::new(features);
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
-    let mut auv = plant(current, seed);
-    // models[0] sees every episode; models[1 + j] leaves out those with index ≡ j.
-    let mut models =
-        vec![RlsModel::<6, 3, R>::try_new(ModelConfig::DEFAULT).unwrap(); 1 + settings.ensemble];
-    let mut episodes = 0usize;
-    let mut fit = |models: &mut Vec<RlsModel<6, 3, R>>, e: &Episode| {
-        for (m, model) in models.iter_mut().enumerate() {
-            if m > 0 && episodes % settings.ensemble == m - 1 {
-                continue;
-            }
-            for (k, u) in e.commands.iter().enumerate() {
-                model
-                    .update(&map, &e.states[k], u, &e.states[k + 1])
-                    .unwrap();
-            }
-        }
-        episodes += 1;
+    let mut plant = Surveyed {
+        auv: plant(current, seed),
+        models: AuvModels::new(settings.ensemble),
     };
-    let bare = run(&Vector::zeros(), &mut auv);
-    fit(&mut models, &bare);
-    let start = bare.states[0];
-    // Explorations first, each predicted before it runs by the models fitted so far: their
-    // out-of-sample errors give the learner its initial error when `initial_error` < 0.
-    let width = scale(settings.velocity_scale) * settings.explore;
-    let mut explored = Vec::new();
-    let mut squared = 0.0f32;
-    for _ in 0..settings.explorations {
-        let theta = uniform(&mut rng, &width);
-        let predicted = predict_with(&models, &map, &start, &theta);
-        let e = run(&theta, &mut auv);
-        fit(&mut models, &e);
-        // A prediction that failed counts as an error of the failure cost, 10.
-        let error = predicted.map_or(10.0, |p| (e.cost - p.cost).abs().min(10.0));
-        squared += error * error;
-        explored.push((theta, e.cost, predicted.ok()));
-    }
-    let measured = (squared / settings.explorations.max(1) as f32).sqrt();
-    let config = ModelBasedConfig {
-        initial_radius: settings.radius,
-        margin: 0.2 * bare.cost.abs(),
-        inner_evaluations: INNER_BUDGET,
-        error_weight: settings.error_weight,
-        uncertainty_weight: settings.uncertainty_weight,
-        initial_error: if settings.initial_error < 0.0 {
-            measured
-        } else {
-            settings.initial_error
+    let learner = model_learner::Settings {
+        config: ModelBasedConfig {
+            initial_radius: settings.radius,
+            inner_evaluations: INNER_BUDGET,
+            error_weight: settings.error_weight,
+            uncertainty_weight: settings.uncertainty_weight,
+            ..ModelBasedConfig::DEFAULT
         },
-        ..ModelBasedConfig::DEFAULT
+        margin: 0.2,
+        explorations: settings.explorations,
+        explore: scale(settings.velocity_scale) * settings.explore,
+        // A prediction that failed counts as an error of the failure cost, 10.
+        initial_error: if settings.initial_error < 0.0 {
+            InitialError::Measured { cap: 10.0 }
+        } else {
+            InitialError::Fixed(settings.initial_error)
+        },
     };
-    let mut learner = ModelBased::try_new(auv_task::bounds(), fallback(&settings), config).unwrap();
-    learner.record(Vector::zeros(), bare.cost).unwrap();
-    learner.set_reference(bare.cost).unwrap();
-    let mut run_ = Run {
+    let r = model_learner::learn(
+        &mut plant,
+        auv_task::bounds(),
+        fallback(&settings),
+        inner_cmaes::<P, 12>(INNER_BUDGET),
+        &learner,
+        budget(),
+        &mut rng,
+    )
+    .expect("a valid learner");
+    Run {
         bare_mean: bare_mean(seed, current),
-        costs: vec![bare.cost],
-        source: vec!['b'],
-        predicted: vec![None],
-        errors: vec![learner.prediction_error()],
-    };
-    for (theta, cost, predicted) in explored {
-        learner.record(theta, cost).unwrap();
-        run_.costs.push(cost);
-        run_.source.push('e');
-        run_.predicted.push(predicted);
-        run_.errors.push(learner.prediction_error());
+        source: r.origin.iter().map(|o| o.letter()).collect(),
+        costs: r.costs,
+        predicted: r.predicted,
+        uncertainty: r.uncertainty,
+        errors: r.errors,
     }
-    let inner = |trust: Bounds<P>, centre: Vector<P>| {
-        let config = CmaesConfig {
-            initial_sigma: 0.5,
-            max_evaluations: INNER_BUDGET,
-            ..CmaesConfig::DEFAULT
-        };
-        Cmaes::<P, 12>::try_new(trust, centre, config)
-    };
-    while run_.costs.len() < budget() {
-        let predict = |theta: &Vector<P>| predict_with(&models, &map, &start, theta);
-        let error = learner.prediction_error();
-        let proposal = match learner.propose_bounded(&mut rng, inner, predict) {
-            Ok(p) => p,
-            // The fallback is spent and the model's candidate did not pass: stop.
-            Err(_) => break,
-        };
-        // The model's cost and uncertainty of the proposal, whichever proposed it.
-        let predicted = predict(&proposal.theta).ok();
-        let e = run(&proposal.theta, &mut auv);
-        fit(&mut models, &e);
-        learner.tell(e.cost).unwrap();
-        run_.source.push(match proposal.source {
-            Source::Model(_) => 'm',
-            Source::Fallback => 'f',
-        });
-        run_.costs.push(e.cost);
-        run_.predicted.push(predicted);
-        run_.errors.push(error);
-    }
-    run_
-}
-
-/// The worst of the models' predicted survey costs of θ from `start`, and the full
-/// model's uncertainty along its imagined episode (`Imagined::deviation`).
-fn predict_with<M: Regressors<6, 3, R>>(
-    models: &[RlsModel<6, 3, R>],
-    map: &M,
-    start: &Vector<6>,
-    theta: &Vector<P>,
-) -> Result<Prediction, Error> {
-    let mut worst = f32::MIN;
-    let mut uncertainty = 0.0;
-    for (m, model) in models.iter().enumerate() {
-        let mut controller = auv_task::controller();
-        let mut shaper = SurveyCost::try_new(RADIUS).unwrap();
-        let imagined = imagine_episode_with_variance(
-            model,
-            map,
-            start,
-            240,
-            DT,
-            &mut controller,
-            theta,
-            &mut shaper,
-            |x| Vector::<3>::new(x[0], x[1], x[2]),
-        )?;
-        worst = worst.max(imagined.cost);
-        if m == 0 {
-            uncertainty = imagined.deviation();
-        }
-    }
-    Ok(Prediction {
-        cost: worst,
-        uncertainty,
-    })
 }
 
 /// The coordinate search alone from θ = 0 (the bare PD is its first candidate).
@@ -350,6 +258,7 @@ fn coordinate(seed: u64, current: AuvConfig, settings: &Settings) -> Run {
         costs,
         source,
         predicted: vec![None; n],
+        uncertainty: vec![None; n],
         errors: vec![0.0; n],
     }
 }
@@ -368,6 +277,7 @@ fn bare(seed: u64, current: AuvConfig) -> Run {
         costs,
         source,
         predicted: vec![None; budget()],
+        uncertainty: vec![None; budget()],
         errors: vec![0.0; budget()],
     }
 }
@@ -471,8 +381,8 @@ fn trace(seed: u64, r: &Run) {
             } else {
                 "      "
             },
-            r.predicted[k].map_or("-".into(), |p| format!("{:.3}", p.cost)),
-            r.predicted[k].map_or("-".into(), |p| format!("{:.3}", p.uncertainty)),
+            r.predicted[k].map_or("-".into(), |p| format!("{p:.3}")),
+            r.uncertainty[k].map_or("-".into(), |u| format!("{u:.3}")),
             r.errors[k]
         );
     }
@@ -487,16 +397,16 @@ fn calibration(current: &str, runs: &[Run], first: usize, last: usize) {
     let (mut unsafe_, mut safe) = (Vec::new(), Vec::new());
     for r in runs {
         for k in (first - 1)..last.min(r.costs.len()) {
-            let (Some(p), 'm') = (r.predicted[k], r.source[k]) else {
+            let (Some(p), Some(u), 'm') = (r.predicted[k], r.uncertainty[k], r.source[k]) else {
                 continue;
             };
-            uncertainty.push(p.uncertainty);
-            size.push((r.costs[k] - p.cost).abs());
-            optimism.push(r.costs[k] - p.cost);
+            uncertainty.push(u);
+            size.push((r.costs[k] - p).abs());
+            optimism.push(r.costs[k] - p);
             if r.costs[k] > limit(r.bare_mean) {
-                unsafe_.push(p.uncertainty);
+                unsafe_.push(u);
             } else {
-                safe.push(p.uncertainty);
+                safe.push(u);
             }
         }
     }

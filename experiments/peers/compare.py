@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Side by side: the library's optimizers against pycma, ZOOpt, nevergrad, SafeOpt and
-bayesian-optimization on the robots' own tasks (AUV survey, hopping leg, via-point arm), with
-the same budgets, seeds and episodes.
+"""Side by side: the library's optimizers and its model-based learner against pycma, ZOOpt,
+nevergrad, SafeOpt and bayesian-optimization on the robots' own tasks (AUV survey, also with
+the current turned by 45°, hopping leg, via-point arm), with the same budgets, seeds and
+episodes.
 
 Every method scores θ through the `oracle` binary (experiments/src/bin/oracle.rs): the
 library's methods run inside it (`run`), the peers ask it for one episode at a time (`eval`).
@@ -15,12 +16,18 @@ deployed cost (the returned θ re-run on 5 fresh episodes: the figure a user get
 optimizer's own time per evaluation (oracle time excluded), and the unsafe episodes summed
 over the seeds: the oracle judges each episode (on the hopper an episode off the gait,
 elsewhere a cost above the bare controller's by more than 20 %, the bound that the safe
-methods, `linebo-safe` and `safeopt`, are given).
+methods, `linebo-safe` and `safeopt`, are given). The library's methods: `coordinate`,
+`sracos`, `crs`, `cmaes`, `rockstar`, `linebo`, `linebo-safe`, and `model`, the model-based
+learner (`ctrl_adapt::model::ModelBased`, experiments/src/model_learner.rs: a plant model
+fitted on every episode's ticks, CMA-ES on imagined episodes, a coordinate-search fallback;
+on the AUV tasks, the hopper and the arm only; its optimizer time includes its imagined
+episodes, and its rows count the episodes its fallback proposed).
 
     python3 -m venv .venv-peers && .venv-peers/bin/pip install -r experiments/peers/requirements.txt
     cargo build --release -p experiments --bin oracle
     .venv-peers/bin/python experiments/peers/compare.py --tasks auv --seeds 1-20
     .venv-peers/bin/python experiments/peers/compare.py --table a.json b.json   # merge runs
+    python3 experiments/peers/compare.py --table a.json --paired model   # seed by seed
 
 The library through its Python package, like a peer (`py-cmaes`, `py-crs`, `py-rockstar`:
 the package installed in the same environment, `pip install ./python`):
@@ -36,6 +43,7 @@ import argparse
 import contextlib
 import io
 import json
+import math
 import multiprocessing
 import os
 import statistics
@@ -54,14 +62,22 @@ except ImportError:
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ORACLE = os.path.join(ROOT, "target", "release", "oracle")
-LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar", "linebo", "linebo-safe"]
+LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar", "linebo", "linebo-safe", "model"]
 PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt", "safeopt", "bayes-opt"]
 # The library through its Python package (`ctrl_adapt`, python/README.md), episodes from the
 # oracle like a peer's. `py-cmaes` has the oracle's `cmaes` sizes and settings (Cmaes<n, λ>,
 # σ₀ the task's step), so its rows equal that row's; `py-crs` and `py-rockstar` have the
 # package's sizes (M = 10(n + 1), M = 5n; the oracle's: 100 and 160).
 BINDING = ["py-cmaes", "py-crs", "py-rockstar"]
-STEP = {"auv": 0.25, "auv-calm": 0.25, "hopper": 1.0 / 6.0, "arm": 0.01, "sphere": 0.3, "ackley": 0.3}
+STEP = {
+    "auv": 0.25,
+    "auv-calm": 0.25,
+    "auv-rotated": 0.25,
+    "hopper": 1.0 / 6.0,
+    "arm": 0.01,
+    "sphere": 0.3,
+    "ackley": 0.3,
+}
 
 
 class Oracle:
@@ -300,7 +316,7 @@ def one(job):
     budget = budget or oracle.budget
     if method in LIBRARY:
         answer = oracle.ask(f"run {method} {budget} {seed}").split()
-        evals, first, best, deployed, ns, unsafe = answer
+        evals, first, best, deployed, ns, unsafe, fallback = answer
         result = dict(
             first=None if first == "-" else int(first),
             best=float(best),
@@ -308,6 +324,7 @@ def one(job):
             us_per_eval=float(ns) / 1e3,
             evaluations=int(evals),
             unsafe=int(unsafe),
+            fallback=None if fallback == "-" else int(fallback),
         )
     else:
         t0 = time.perf_counter()
@@ -347,8 +364,8 @@ def table(results, tasks, methods):
     lines = [
         "| task | method | success | episodes to success, median (IQR) | best cost (median) "
         "| deployed cost (median) | optimizer µs / evaluation (median) "
-        "| unsafe episodes (sum) |",
-        "|---|---|---|---|---|---|---|---|",
+        "| unsafe episodes (sum) | fallback episodes (sum) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for task in tasks:
         for method in methods:
@@ -360,13 +377,56 @@ def table(results, tasks, methods):
             q1, med, q3 = quartiles(firsts)
             show = lambda v: f"> {budget}" if v == float("inf") else f"{v:.4g}"  # noqa: E731
             ok = sum(r["first"] is not None for r in rows)
+            # Only the model-based learner has a fallback (runs saved before it have none).
+            fallback = [r.get("fallback") for r in rows]
+            fell_back = "–" if None in fallback else str(sum(fallback))
             lines.append(
                 f"| {task} | {method} | {ok}/{len(rows)} | {show(med)} ({show(q1)}–{show(q3)}) "
                 f"| {statistics.median(r['best'] for r in rows):.3g} "
                 f"| {statistics.median(r['deployed'] for r in rows):.3g} "
                 f"| {statistics.median(r['us_per_eval'] for r in rows):.1f} "
-                f"| {sum(r['unsafe'] for r in rows)} |"
+                f"| {sum(r['unsafe'] for r in rows)} | {fell_back} |"
             )
+    return "\n".join(lines)
+
+
+def sign_test(wins, losses):
+    """The two-sided sign test's p-value of `wins` against `losses` (ties left out)."""
+    n, k = wins + losses, min(wins, losses)
+    if n == 0:
+        return 1.0
+    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n
+    return min(1.0, 2 * tail)
+
+
+def paired(results, tasks, methods, of):
+    """Seed by seed, `of` against every other method: on how many seeds its episodes to
+    success (a seed without success counts as beyond the budget) and its deployed cost are
+    lower, equal, higher, with the sign test's p-value; only seeds both methods ran."""
+    lines = [
+        f"| task | {of} against | seeds | episodes to success: fewer / equal / more (p) "
+        "| deployed cost: lower / equal / higher (p) |",
+        "|---|---|---|---|---|",
+    ]
+    key = lambda r: r["first"] if r["first"] is not None else float("inf")  # noqa: E731
+    for task in tasks:
+        mine = {r["seed"]: r for r in results if r["task"] == task and r["method"] == of}
+        for method in methods:
+            if method == of:
+                continue
+            theirs = {r["seed"]: r for r in results if r["task"] == task and r["method"] == method}
+            both = sorted(set(mine) & set(theirs))
+            if not both:
+                continue
+            cells = []
+            for field in (key, lambda r: r["deployed"]):
+                a = [field(mine[s]) for s in both]
+                b = [field(theirs[s]) for s in both]
+                lower = sum(x < y for x, y in zip(a, b))
+                higher = sum(x > y for x, y in zip(a, b))
+                equal = len(both) - lower - higher
+                cells.append(f"{lower} / {equal} / {higher} ({sign_test(lower, higher):.2g})")
+            lines.append(f"| {task} | {method} | {len(both)} | {cells[0]} | {cells[1]} |")
     return "\n".join(lines)
 
 
@@ -391,6 +451,11 @@ def main():
         metavar="JSON",
         help="print the table of earlier runs' --json files (merged; no run)",
     )
+    p.add_argument(
+        "--paired",
+        metavar="METHOD",
+        help="with --table: also METHOD against every other method, seed by seed",
+    )
     a = p.parse_args()
     if a.table:
         # A (task, method, seed) saved twice (overlapping runs) counts once: it is the same run.
@@ -403,6 +468,9 @@ def main():
         known = LIBRARY + BINDING + PEERS
         methods = [m for m in known if any(r["method"] == m for r in results)]
         print(table(results, tasks, methods))
+        if a.paired:
+            print()
+            print(paired(results, tasks, methods, a.paired))
         return
     if not os.path.exists(ORACLE):
         sys.exit("build the oracle first: cargo build --release -p experiments --bin oracle")

@@ -4,6 +4,7 @@
 //! release-only claims (`cargo test --release -p experiments`).
 
 pub mod hopping;
+pub mod model_learner;
 pub mod overhead;
 pub mod peers;
 pub mod rockstar_arm;

@@ -9,6 +9,7 @@
 //! |---|---|---|---|---|---|---|
 //! | `auv` | 18 | [−1, 1] | W = 0 | 150 | cost < 1 (within D = 1 m) | the "real" plant (0.6 m/s current) with seeded disturbances; each episode continues the noise; deployed on 5 new disturbance sequences |
 //! | `auv-calm` | 18 | [−1, 1] | W = 0 | 150 | cost < 1 | the same plant without disturbances: deterministic |
+//! | `auv-rotated` | 18 | [−1, 1] | W = 0 | 150 | cost < 1 | `auv` with the current turned by 45° ([`ROTATED_TASK_DEG`]), as in `model_safety_auv` |
 //! | `hopper` | 31 | the task's box | zero correction | 200 | cost ≤ 3·10⁻⁴ | the seed's block course, replayed every episode; deployed on 5 unseen courses |
 //! | `arm` | 50 | [−10⁴, 10⁴] | minimum-jerk θ | 1,000 | cost < 1 % of the start's | deterministic |
 //! | `sphere`, `ackley` | 10 | [−1, 1] | 0 | 100 | cost < 0.01 (Sphere), Ackley's value at that distance | shifted to 0.2, deterministic |
@@ -16,7 +17,8 @@
 //! [`Conditions`] move the AUV tasks off the conditions their settings were chosen in: warm-up
 //! episodes of the bare controller before learning (every learning episode then meets the
 //! disturbances drawn that many episodes later), and the current turned about the vertical.
-//! [`Trial::new`] is the nominal conditions, as in the table.
+//! [`Trial::new`] is the nominal conditions, as in the table (for `auv-rotated`, the turn of
+//! [`Conditions`] adds to the task's own 45°).
 //!
 //! Every episode is also judged safe or unsafe ([`Scored`]): on the hopper an episode off the
 //! gait, on the other tasks a cost above the bare controller's by more than
@@ -32,6 +34,7 @@ use ctrl_adapt::optimizer::{
 use host_tests::arm::{self, ViaPointArm};
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::functions::{ackley, sphere};
+use host_tests::hopper::Hopper;
 use host_tests::{auv_task, hopper_task};
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro128PlusPlus;
@@ -50,6 +53,9 @@ pub enum Task {
     /// The same survey without disturbances: every episode of a θ is the same, and the
     /// quantised survey cost (time within D in 0.1 s steps) has plateaus.
     AuvCalm,
+    /// The disturbed survey with the current turned by [`ROTATED_TASK_DEG`] (the changed
+    /// current of the model-based learner's study, `examples/model_safety_auv.rs`).
+    AuvRotated,
     /// The hopping leg on uneven ground (31 parameters).
     Hopper,
     /// The 10-link via-point arm (50 parameters).
@@ -62,16 +68,18 @@ pub enum Task {
 
 impl Task {
     /// Every task, in table order.
-    pub const ALL: [Self; 6] = [
+    pub const ALL: [Self; 7] = [
         Self::Auv,
         Self::AuvCalm,
+        Self::AuvRotated,
         Self::Hopper,
         Self::Arm,
         Self::Sphere,
         Self::Ackley,
     ];
 
-    /// The task named `name` (`auv`, `auv-calm`, `hopper`, `arm`, `sphere`, `ackley`).
+    /// The task named `name` (`auv`, `auv-calm`, `auv-rotated`, `hopper`, `arm`, `sphere`,
+    /// `ackley`).
     pub fn parse(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|t| t.name() == name)
     }
@@ -81,6 +89,7 @@ impl Task {
         match self {
             Self::Auv => "auv",
             Self::AuvCalm => "auv-calm",
+            Self::AuvRotated => "auv-rotated",
             Self::Hopper => "hopper",
             Self::Arm => "arm",
             Self::Sphere => "sphere",
@@ -91,7 +100,7 @@ impl Task {
     /// The number of parameters.
     pub fn dimension(self) -> usize {
         match self {
-            Self::Auv | Self::AuvCalm => auv_task::P,
+            Self::Auv | Self::AuvCalm | Self::AuvRotated => auv_task::P,
             Self::Hopper => hopper_task::P,
             Self::Arm => arm::PARAMS,
             Self::Sphere | Self::Ackley => SYNTHETIC,
@@ -101,7 +110,7 @@ impl Task {
     /// The episode budget of the comparison.
     pub fn budget(self) -> u32 {
         match self {
-            Self::Auv | Self::AuvCalm => 150,
+            Self::Auv | Self::AuvCalm | Self::AuvRotated => 150,
             Self::Hopper => 200,
             Self::Arm => 1000,
             Self::Sphere | Self::Ackley => 10 * SYNTHETIC as u32,
@@ -109,9 +118,13 @@ impl Task {
     }
 }
 
+/// The turn of the current in the `auv-rotated` task (degrees, from +x towards +y): the
+/// changed current of `examples/model_safety_auv.rs` and of the guard study.
+pub const ROTATED_TASK_DEG: f64 = 45.0;
+
 /// Conditions of an AUV trial other than the nominal ones of [`Trial::new`], to check a
 /// setting away from the conditions it was chosen in. Only the AUV tasks (`auv`,
-/// `auv-calm`) read them; the other tasks ignore them.
+/// `auv-calm`, `auv-rotated`) read them; the other tasks ignore them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Conditions {
     /// Episodes of the bare controller (the start θ) run on the plant when the trial is
@@ -199,7 +212,7 @@ pub struct Scored {
     pub unsafe_episode: bool,
 }
 
-fn to_vec<const N: usize>(v: &Vector<N>) -> Vec<f32> {
+pub(crate) fn to_vec<const N: usize>(v: &Vector<N>) -> Vec<f32> {
     v.iter().copied().collect()
 }
 
@@ -216,18 +229,24 @@ impl Trial {
     /// The trial of `task` with seed `seed` in `conditions` (read by the AUV tasks only).
     pub fn with_conditions(task: Task, seed: u64, conditions: Conditions) -> Self {
         let (episodes, lower, upper, start, threshold) = match task {
-            Task::Auv | Task::AuvCalm => {
+            Task::Auv | Task::AuvCalm | Task::AuvRotated => {
                 let b = auv_task::bounds();
                 let mut config = AuvConfig::REAL;
-                if conditions.current_rotation_deg != 0.0 {
-                    let (sin, cos) = conditions.current_rotation_deg.to_radians().sin_cos();
+                let turn = conditions.current_rotation_deg
+                    + if task == Task::AuvRotated {
+                        ROTATED_TASK_DEG
+                    } else {
+                        0.0
+                    };
+                if turn != 0.0 {
+                    let (sin, cos) = turn.to_radians().sin_cos();
                     let [x, y, z] = config.current_direction;
                     config.current_direction = [cos * x - sin * y, sin * x + cos * y, z];
                 }
-                let mut auv = if task == Task::Auv {
-                    auv_task::plant(config, seed)
-                } else {
+                let mut auv = if task == Task::AuvCalm {
                     Auv::new(config, seed)
+                } else {
+                    auv_task::plant(config, seed)
                 };
                 let bare = vec![0.0; auv_task::P];
                 for _ in 0..conditions.warm_up {
@@ -235,6 +254,7 @@ impl Trial {
                         &bare,
                         &mut auv,
                         &mut Xoshiro128PlusPlus::seed_from_u64(seed),
+                        None,
                     );
                 }
                 (
@@ -335,7 +355,7 @@ impl Trial {
     pub fn start_cost(&self) -> Option<f32> {
         Some(
             Trial::with_conditions(self.task, self.seed, self.conditions)
-                .run(&self.start)?
+                .run(&self.start, None)?
                 .0,
         )
     }
@@ -374,7 +394,21 @@ impl Trial {
     /// One learning episode of θ (clipped into the box): its cost and whether it was unsafe
     /// (see [`Scored`]); the cost is the one [`Trial::score`] gives. `None` for a malformed θ.
     pub fn episode(&mut self, x: &[f32]) -> Option<Scored> {
-        let (cost, off_gait) = self.run(x)?;
+        self.judged(x, None)
+    }
+
+    /// [`Trial::episode`], handing `observe` the episode's ticks for a plant model (see
+    /// [`Tick`]); the synthetic tasks have none.
+    pub fn episode_observed(
+        &mut self,
+        x: &[f32],
+        observe: &mut dyn FnMut(Tick<'_>),
+    ) -> Option<Scored> {
+        self.judged(x, Some(observe))
+    }
+
+    fn judged(&mut self, x: &[f32], observe: Option<&mut dyn FnMut(Tick<'_>)>) -> Option<Scored> {
+        let (cost, off_gait) = self.run(x, observe)?;
         let unsafe_episode = match self.task {
             Task::Hopper => off_gait,
             _ => self
@@ -387,17 +421,33 @@ impl Trial {
         })
     }
 
-    /// One learning episode: its cost and whether it left the hopper's gait.
-    fn run(&mut self, x: &[f32]) -> Option<(f32, bool)> {
+    /// One learning episode: its cost and whether it left the hopper's gait; its ticks to
+    /// `observe`.
+    fn run(&mut self, x: &[f32], observe: Option<&mut dyn FnMut(Tick<'_>)>) -> Option<(f32, bool)> {
         let x = self.clip(x)?;
         self.evaluations += 1;
         let mut rng = Xoshiro128PlusPlus::seed_from_u64(self.seed);
         Some(match &mut self.episodes {
-            Episodes::Auv(auv) => (auv_cost(&x, auv, &mut rng), false),
-            Episodes::Hopper(seed) => {
-                hopper_episode(&x, &mut hopper_task::plant(true, 1000 + *seed), &mut rng)
+            Episodes::Auv(auv) => (auv_cost(&x, auv, &mut rng, observe), false),
+            Episodes::Hopper(seed) => hopper_episode(
+                &x,
+                &mut hopper_task::plant(true, 1000 + *seed),
+                &mut rng,
+                observe,
+            ),
+            Episodes::Arm(a) => {
+                let theta = to_vector(&x)?;
+                match observe {
+                    None => (a.cost(&theta), false),
+                    Some(observe) => {
+                        let (states, forcings, terms) = a.ticks(&theta);
+                        for (k, state) in states.iter().enumerate() {
+                            observe(Tick::Arm(state, forcings.get(k)));
+                        }
+                        (terms.total() as f32, false)
+                    }
+                }
             }
-            Episodes::Arm(a) => (a.cost(&to_vector(&x)?), false),
             Episodes::Synthetic(f) => (f(&to_vector(&x)?, 0.2), false),
         })
     }
@@ -413,11 +463,14 @@ impl Trial {
             Episodes::Auv(auv) => (0..DEPLOY_EPISODES)
                 .map(|k| {
                     let mut auv = Auv::new(*auv.config(), fresh(k));
-                    auv_cost(&x, &mut auv, &mut rng)
+                    auv_cost(&x, &mut auv, &mut rng, None)
                 })
                 .sum(),
             Episodes::Hopper(_) => (0..DEPLOY_EPISODES)
-                .map(|k| hopper_episode(&x, &mut hopper_task::plant(true, fresh(k)), &mut rng).0)
+                .map(|k| {
+                    let mut hopper = hopper_task::plant(true, fresh(k));
+                    hopper_episode(&x, &mut hopper, &mut rng, None).0
+                })
                 .sum(),
             Episodes::Arm(a) => DEPLOY_EPISODES as f32 * a.cost(&to_vector(&x)?),
             Episodes::Synthetic(f) => DEPLOY_EPISODES as f32 * f(&to_vector(&x)?, 0.2),
@@ -426,20 +479,51 @@ impl Trial {
     }
 }
 
-fn auv_cost(x: &[f32], auv: &mut Auv, rng: &mut Xoshiro128PlusPlus) -> f32 {
+/// One tick of a trial's episode, for a plant model fitted on the ticks
+/// ([`Trial::episode_observed`]): the plant's state before a step with the command sent to
+/// it, and the state after the last step without one.
+#[derive(Clone, Copy)]
+pub enum Tick<'a> {
+    /// The AUV and the velocity command (`host_tests::auv_task::evaluate_observed`).
+    Auv(&'a Auv, Option<&'a Vector<3>>),
+    /// The leg and the [knee, hip] torques (`host_tests::hopper_task::evaluate_observed`).
+    Hopper(&'a Hopper, Option<&'a Vector<2>>),
+    /// The arm's joint angles and scaled velocities [y, z] and the forcing terms applied
+    /// from them (`ViaPointArm::ticks`).
+    Arm(&'a [f64; 2 * arm::LINKS], Option<&'a [f64; arm::LINKS]>),
+}
+
+fn auv_cost(
+    x: &[f32],
+    auv: &mut Auv,
+    rng: &mut Xoshiro128PlusPlus,
+    observe: Option<&mut dyn FnMut(Tick<'_>)>,
+) -> f32 {
     let theta = to_vector(x).unwrap_or_else(Vector::zeros);
-    auv_task::evaluate(theta, auv, rng, false).map_or(f32::INFINITY, |e| e.report.cost)
+    match observe {
+        None => auv_task::evaluate(theta, auv, rng, false),
+        Some(observe) => auv_task::evaluate_observed(theta, auv, rng, false, |a, u| {
+            observe(Tick::Auv(a, u));
+        }),
+    }
+    .map_or(f32::INFINITY, |e| e.report.cost)
 }
 
 /// A hopper episode's cost and whether it left the gait (a rejected θ: +∞ and off).
 fn hopper_episode(
     x: &[f32],
-    hopper: &mut host_tests::hopper::Hopper,
+    hopper: &mut Hopper,
     rng: &mut Xoshiro128PlusPlus,
+    observe: Option<&mut dyn FnMut(Tick<'_>)>,
 ) -> (f32, bool) {
     let theta = to_vector(x).unwrap_or_else(Vector::zeros);
-    hopper_task::evaluate(theta, hopper, rng, false)
-        .map_or((f32::INFINITY, true), |e| (e.report.cost, !e.hops_stably()))
+    match observe {
+        None => hopper_task::evaluate(theta, hopper, rng, false),
+        Some(observe) => hopper_task::evaluate_observed(theta, hopper, rng, |h, u| {
+            observe(Tick::Hopper(h, u));
+        }),
+    }
+    .map_or((f32::INFINITY, true), |e| (e.report.cost, !e.hops_stably()))
 }
 
 /// What one optimizer run did on a trial.
@@ -453,6 +537,9 @@ pub struct RunReport {
     pub optimizer_ns: f64,
     /// The unsafe episodes of the run ([`Scored::unsafe_episode`]).
     pub unsafe_episodes: usize,
+    /// For the model-based learner, the episodes its model-free fallback proposed
+    /// ([`crate::model_learner::Origin::Fallback`]); `None` for the other methods.
+    pub fallback_episodes: Option<usize>,
 }
 
 impl RunReport {
@@ -471,8 +558,9 @@ impl RunReport {
 }
 
 /// The library's methods of the comparison (`run_library` also knows `cem`, the sweep's
-/// `DiagonalCem`, which the peer comparison does not list).
-pub const LIBRARY_METHODS: [&str; 7] = [
+/// `DiagonalCem`, which the peer comparison does not list). `model` is the model-based
+/// learner ([`crate::model_learner::run_on_trial`]; the robots' tasks only).
+pub const LIBRARY_METHODS: [&str; 8] = [
     "coordinate",
     "sracos",
     "crs",
@@ -480,6 +568,7 @@ pub const LIBRARY_METHODS: [&str; 7] = [
     "rockstar",
     "linebo",
     "linebo-safe",
+    "model",
 ];
 
 /// The safe methods' cost bound exceeds the bare controller's cost (the start's, in the
@@ -518,11 +607,17 @@ pub fn line_bo_config(trial: &Trial, budget: u32, safe: bool) -> Option<LineBoCo
 }
 
 /// Runs the library method `method` (one of [`LIBRARY_METHODS`]) on `trial` for `budget`
-/// episodes with the RNG seeded by `seed`; `None` for an unknown method.
+/// episodes with the RNG seeded by `seed`; `None` for an unknown method (or `model` on a
+/// synthetic task, which has no plant to model).
 pub fn run_library(method: &str, trial: &mut Trial, budget: u32, seed: u64) -> Option<RunReport> {
+    if method == "model" {
+        return crate::model_learner::report_on_trial(trial, budget, seed);
+    }
     match trial.task() {
         // λ = 4 + ⌊3 ln n⌋, CMA-ES's default population.
-        Task::Auv | Task::AuvCalm => run_n::<{ auv_task::P }, 12>(method, trial, budget, seed),
+        Task::Auv | Task::AuvCalm | Task::AuvRotated => {
+            run_n::<{ auv_task::P }, 12>(method, trial, budget, seed)
+        }
         Task::Hopper => run_n::<{ hopper_task::P }, 14>(method, trial, budget, seed),
         Task::Arm => run_n::<{ arm::PARAMS }, 15>(method, trial, budget, seed),
         Task::Sphere | Task::Ackley => run_n::<SYNTHETIC, 10>(method, trial, budget, seed),
@@ -541,7 +636,7 @@ fn run_n<const N: usize, const L: usize>(
     // the AUV box (the tuned local step), a sixth of the hopper's, 1 % of the arm's (σ = 100,
     // the via-point experiments' exploration).
     let fraction = match trial.task() {
-        Task::Auv | Task::AuvCalm => 0.25,
+        Task::Auv | Task::AuvCalm | Task::AuvRotated => 0.25,
         Task::Hopper => 1.0 / 6.0,
         Task::Arm => 0.01,
         Task::Sphere | Task::Ackley => 0.3,
@@ -689,6 +784,7 @@ fn drive<const N: usize, O: Optimizer<N>>(
         costs,
         returned,
         unsafe_episodes,
+        fallback_episodes: None,
     }
 }
 

@@ -163,14 +163,16 @@ pub fn run_episode<O: Optimizer<P>, G: RngCore>(
 ) -> Result<AuvEpisode, AdapterError> {
     auv.reset();
     adapter.begin_episode(rng)?;
-    drive(adapter, auv, record)
+    drive(adapter, auv, record, &mut |_, _| {})
 }
 
-/// The ticks and the end of an episode that has begun.
+/// The ticks and the end of an episode that has begun; `observe` sees the plant before
+/// every step with the command sent, and once more after the last step without one.
 fn drive(
     episode: &mut impl Episodic<SurveyCost, P, 6, 3>,
     auv: &mut Auv,
     record: bool,
+    observe: &mut dyn FnMut(&Auv, Option<&Vector<3>>),
 ) -> Result<AuvEpisode, AdapterError> {
     let mut trajectory = record.then(|| Vec::with_capacity(auv.steps_per_episode() + 1));
     for _ in 0..auv.steps_per_episode() {
@@ -178,8 +180,10 @@ fn drive(
             t.push(auv.state().position);
         }
         let u = episode.control(&policy_state(auv), &true_error(auv));
+        observe(auv, Some(&u));
         auv.step([f64::from(u[0]), f64::from(u[1]), f64::from(u[2])]);
     }
+    observe(auv, None);
     if let Some(t) = trajectory.as_mut() {
         t.push(auv.state().position);
     }
@@ -239,13 +243,26 @@ pub fn best_so_far(episodes: &[AuvEpisode]) -> Vec<f32> {
 pub fn evaluate<G: RngCore>(
     theta: Vector<P>,
     auv: &mut Auv,
+    rng: &mut G,
+    record: bool,
+) -> Result<AuvEpisode, AdapterError> {
+    evaluate_observed(theta, auv, rng, record, |_, _| {})
+}
+
+/// [`evaluate`], handing `observe` every tick's transition for a plant model: the plant
+/// before each step with the command sent to it, and the plant once more after the last
+/// step (no command).
+pub fn evaluate_observed<G: RngCore>(
+    theta: Vector<P>,
+    auv: &mut Auv,
     _rng: &mut G,
     record: bool,
+    mut observe: impl FnMut(&Auv, Option<&Vector<3>>),
 ) -> Result<AuvEpisode, AdapterError> {
     bounds().check(&theta, "theta")?;
     let shaper = SurveyCost::try_new(RADIUS)?;
     let mut runner = EpisodeRunner::try_new(controller(), shaper, adapter_config(1))?;
     auv.reset();
     runner.begin_episode(theta, Mode::Deploy)?;
-    drive(&mut runner, auv, record)
+    drive(&mut runner, auv, record, &mut observe)
 }

@@ -413,14 +413,17 @@ pub fn run_episode<
 ) -> Result<HopEpisode, AdapterError> {
     hopper.reset();
     adapter.begin_episode(rng)?;
-    drive(adapter, hopper, record)
+    drive(adapter, hopper, record, &mut |_, _| {})
 }
 
-/// The ticks and the end of an episode that has begun.
+/// The ticks and the end of an episode that has begun; `observe` sees the plant before
+/// every step with the command sent, and once more after the last step (or the collapse)
+/// without one.
 fn drive(
     episode: &mut impl Episodic<ApexHeightCost, P, 4, 2>,
     hopper: &mut Hopper,
     record: bool,
+    observe: &mut dyn FnMut(&Hopper, Option<&Vector<2>>),
 ) -> Result<HopEpisode, AdapterError> {
     let limit = hopper.config().torque_limit;
     let mut trajectory = record.then(Vec::new);
@@ -448,6 +451,7 @@ fn drive(
                 torques: [tau[0], tau[1]],
             });
         }
+        observe(hopper, Some(&tau));
         hopper.step([f64::from(tau[1]), f64::from(tau[0])]);
         if hopper.new_apex().is_some() {
             // The ground is redrawn at the apex: the stance before it was on `stance_ground`.
@@ -463,6 +467,7 @@ fn drive(
             break;
         }
     }
+    observe(hopper, None);
     let collapsed = hopper.collapsed();
     let report = if collapsed {
         episode.abort_episode()?
@@ -522,12 +527,37 @@ pub fn evaluate_with<G: RngCore>(
     nominal: &NominalHopping,
     apex: ApexConfig,
 ) -> Result<HopEpisode, AdapterError> {
+    deploy(theta, hopper, record, nominal, apex, &mut |_, _| {})
+}
+
+/// [`evaluate`], handing `observe` every tick's transition for a plant model: the plant
+/// before each step with the command sent to it ([knee, hip] torques), and the plant once
+/// more after the last step or the collapse (no command).
+pub fn evaluate_observed<G: RngCore>(
+    theta: Vector<P>,
+    hopper: &mut Hopper,
+    _rng: &mut G,
+    mut observe: impl FnMut(&Hopper, Option<&Vector<2>>),
+) -> Result<HopEpisode, AdapterError> {
+    let nominal = &NominalHopping::TUNED;
+    deploy(theta, hopper, false, nominal, apex_config(), &mut observe)
+}
+
+/// One episode of the fixed policy `theta` (an [`EpisodeRunner`] in [`Mode::Deploy`]).
+fn deploy(
+    theta: Vector<P>,
+    hopper: &mut Hopper,
+    record: bool,
+    nominal: &NominalHopping,
+    apex: ApexConfig,
+    observe: &mut dyn FnMut(&Hopper, Option<&Vector<2>>),
+) -> Result<HopEpisode, AdapterError> {
     bounds().check(&theta, "theta")?;
     let shaper = ApexHeightCost::try_new(apex)?;
     let mut runner = EpisodeRunner::try_new(controller_for(nominal), shaper, adapter_config(1))?;
     hopper.reset();
     runner.begin_episode(theta, Mode::Deploy)?;
-    drive(&mut runner, hopper, record)
+    drive(&mut runner, hopper, record, observe)
 }
 
 #[cfg(test)]

@@ -14,9 +14,13 @@
 //!                                 off the gait, elsewhere a cost above the safe threshold)
 //! deploy <θ₁ … θₙ>              → θ's mean cost over 5 fresh episodes (not counted)
 //! run <method> <budget> <seed>  → <evaluations> <first success or -> <best> <deployed>
-//!                                 <optimizer ns per evaluation> <unsafe episodes>: a
-//!                                 library method (coordinate, sracos, crs, cmaes, rockstar,
-//!                                 linebo, linebo-safe) on a fresh copy of the trial
+//!                                 <optimizer ns per evaluation> <unsafe episodes>
+//!                                 <fallback episodes or ->: a library method (coordinate,
+//!                                 sracos, crs, cmaes, rockstar, linebo, linebo-safe, and
+//!                                 model, the model-based learner, whose optimizer time
+//!                                 includes its imagined episodes and which alone reports
+//!                                 the episodes its fallback proposed) on a fresh copy of
+//!                                 the trial
 //! quit
 //! ```
 //!
@@ -56,7 +60,9 @@ fn reply(trial: &mut Option<(Task, u64, Trial)>, line: &str) -> String {
                 *trial = Some((task, seed, t));
                 answer
             }
-            _ => "err usage: task <auv|auv-calm|hopper|arm|sphere|ackley> <seed>".into(),
+            _ => {
+                "err usage: task <auv|auv-calm|auv-rotated|hopper|arm|sphere|ackley> <seed>".into()
+            }
         };
     }
     let Some((task, seed, t)) = trial.as_mut() else {
@@ -92,8 +98,11 @@ fn reply(trial: &mut Option<(Task, u64, Trial)>, line: &str) -> String {
                         .first_success(fresh.threshold())
                         .map_or("-".to_string(), |k| k.to_string());
                     let deployed = fresh.deployed(&r.returned).unwrap_or(f32::NAN);
+                    let fallback = r
+                        .fallback_episodes
+                        .map_or("-".to_string(), |k| k.to_string());
                     format!(
-                        "{} {first} {:e} {:e} {:.0} {}",
+                        "{} {first} {:e} {:e} {:.0} {} {fallback}",
                         r.costs.len(),
                         r.best(),
                         deployed,
@@ -101,7 +110,7 @@ fn reply(trial: &mut Option<(Task, u64, Trial)>, line: &str) -> String {
                         r.unsafe_episodes
                     )
                 }
-                None => format!("err unknown method {method}"),
+                None => format!("err unknown method {method} (or none for this task)"),
             }
         }
         _ => format!("err unknown command {command}"),
