@@ -49,8 +49,9 @@
 //! default (k_u = 0).
 //!
 //! # Footprint
-//! For the AUV (N = 18, coordinate-search fallback) the learner is 1,040 bytes and its model
-//! (`RlsModel<6, 3, 14>`) 1,168 bytes: 2,208 bytes kept between episodes. The inner
+//! For the AUV (N = 18, coordinate-search fallback) the learner is about 1 KB and its model
+//! (`RlsModel<6, 3, 14>`) about 1.2 KB, kept between episodes (the bytes measured on the
+//! Cortex-M4F are in `docs/firmware.md`). The inner
 //! optimizer lives only inside `propose`, on the stack: 4,520 bytes for `Cmaes<18, 12>`.
 //! A proposal costs `inner_evaluations` imagined episodes (240 × 240 ticks on the AUV), and
 //! one more when the fallback proposes (its candidate is predicted too): its instructions on
