@@ -30,11 +30,11 @@ use crate::dispatch::{configured, record_of};
 /// The largest state compiled for [`RlsModel`].
 pub const MAX_STATE: usize = 8;
 /// The largest command compiled for [`RlsModel`].
-pub const MAX_ACTION: usize = 4;
+pub const MAX_ACTION: usize = 2;
 /// The counts of user regressors compiled for [`RlsModel`].
 pub const EXTRA_FEATURES: [usize; 3] = [0, 1, 2];
 /// The largest dimension compiled for [`ModelBased`].
-pub const MAX_LEARNER_DIMENSION: usize = 12;
+pub const MAX_LEARNER_DIMENSION: usize = 8;
 
 // ---------------------------------------------------------------------------------------
 // RlsModel at any compiled sizes.
@@ -273,8 +273,6 @@ macro_rules! model_action {
         match $a {
             1 => model_extra!($s, 1, $e, $work),
             2 => model_extra!($s, 2, $e, $work),
-            3 => model_extra!($s, 3, $e, $work),
-            4 => model_extra!($s, 4, $e, $work),
             _ => None,
         }
     };
@@ -372,14 +370,20 @@ impl Search {
     /// The search called `name` with the fields of the JSON object `json` over the default
     /// configuration.
     pub fn parse(name: &str, json: &str) -> Result<Self, BuildError> {
+        // Checked here, so that an inner search's bad field is refused at construction
+        // rather than at the first proposal.
         let config = |e: crate::dispatch::BuildError| BuildError::Other(e.to_string());
         match name {
-            "coordinate" => Ok(Self::Coordinate(
-                configured(CoordinateConfig::DEFAULT, json).map_err(config)?,
-            )),
-            "cmaes" => Ok(Self::Cmaes(
-                configured(CmaesConfig::DEFAULT, json).map_err(config)?,
-            )),
+            "coordinate" => {
+                let c: CoordinateConfig = configured(CoordinateConfig::DEFAULT, json).map_err(config)?;
+                c.validate().map_err(BuildError::Library)?;
+                Ok(Self::Coordinate(c))
+            }
+            "cmaes" => {
+                let c: CmaesConfig = configured(CmaesConfig::DEFAULT, json).map_err(config)?;
+                c.validate().map_err(BuildError::Library)?;
+                Ok(Self::Cmaes(c))
+            }
             other => Err(BuildError::Other(format!(
                 "unknown search `{other}` (one of: {})",
                 Self::NAMES.join(", ")
@@ -621,10 +625,6 @@ macro_rules! learner_dimension {
             6 => Some(learner_at::<6, 9>($work)),
             7 => Some(learner_at::<7, 9>($work)),
             8 => Some(learner_at::<8, 10>($work)),
-            9 => Some(learner_at::<9, 10>($work)),
-            10 => Some(learner_at::<10, 10>($work)),
-            11 => Some(learner_at::<11, 11>($work)),
-            12 => Some(learner_at::<12, 11>($work)),
             _ => None,
         }
     };
@@ -633,7 +633,7 @@ macro_rules! learner_dimension {
 /// The CMA-ES population compiled at dimension `n` (for the Rust type's name).
 pub fn learner_population(n: usize) -> usize {
     // ⌊3 ln n⌋ as the table writes it out.
-    const TABLE: [usize; MAX_LEARNER_DIMENSION] = [4, 6, 7, 8, 8, 9, 9, 10, 10, 10, 11, 11];
+    const TABLE: [usize; MAX_LEARNER_DIMENSION] = [4, 6, 7, 8, 8, 9, 9, 10];
     TABLE[n.clamp(1, MAX_LEARNER_DIMENSION) - 1]
 }
 

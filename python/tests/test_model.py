@@ -180,7 +180,7 @@ def test_model_bad_input_raises_and_changes_nothing():
         m.rollout([0, 0], 3, lambda s: 1 / 0)  # the policy's exception propagates
     assert m.save() == before
     for bad in [dict(state_dim=0, action_dim=1), dict(state_dim=9, action_dim=1),
-                dict(state_dim=2, action_dim=5), dict(state_dim=2, action_dim=1, features=3),
+                dict(state_dim=2, action_dim=3), dict(state_dim=2, action_dim=1, features=3),
                 dict(state_dim=2, action_dim=1, forgetting=1.5),
                 dict(state_dim=2, action_dim=1, prior_variance=0.0),
                 dict(state_dim=2, action_dim=1, max_variance=1.0)]:
@@ -249,7 +249,7 @@ def test_learner_bad_input_raises_and_changes_nothing():
         with pytest.raises(ModelError):
             ModelBased(**kwargs)
     with pytest.raises(ModelError):
-        ModelBased(-np.ones(13), np.ones(13))  # beyond the compiled dimensions
+        ModelBased(-np.ones(9), np.ones(9))  # beyond the compiled dimensions
     for record in [b"", l.save()[:-1], RlsModel(2, 1).save()]:
         with pytest.raises(RecordError):
             ModelBased.load(record)

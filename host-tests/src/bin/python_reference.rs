@@ -176,7 +176,7 @@ fn hex(bytes: &[u8]) -> String {
 fn saved<T: Persistent>(value: &T) -> Result<String, String> {
     let mut buf = vec![0u8; 1 << 16];
     record::save(value, &mut buf)
-        .map(hex)
+        .map(|bytes| hex(bytes))
         .map_err(|e| e.to_string())
 }
 
