@@ -52,7 +52,7 @@ import ctrl_adapt  # noqa: E402
 import pendulum_guard as pg  # noqa: E402
 
 FALL = 0.2  # rad: Gymnasium's termination
-EPISODES = 8  # real episodes per run, the bare one included
+EPISODES = 6  # real episodes per run, the bare one included
 
 # The settings tried on seeds 101–110: (dither σ, initial trust radius, margin, inner
 # predictions per proposal).
