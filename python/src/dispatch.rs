@@ -356,7 +356,10 @@ where
 }
 
 /// `default` with the fields of the JSON object `json` put over it.
-pub(crate) fn configured<C: Serialize + DeserializeOwned>(default: C, json: &str) -> Result<C, BuildError> {
+pub(crate) fn configured<C: Serialize + DeserializeOwned>(
+    default: C,
+    json: &str,
+) -> Result<C, BuildError> {
     let bad = |e: serde_json::Error| BuildError::Config(format!("configuration: {e}"));
     let mut value = serde_json::to_value(default).map_err(bad)?;
     let given: serde_json::Value = serde_json::from_str(json).map_err(bad)?;

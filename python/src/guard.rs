@@ -416,7 +416,7 @@ pub(crate) fn values_as(
 }
 
 fn values_of(py: Python<'_>, values: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f32>> {
-    values_as(py, values, name, |why| guard_error(why))
+    values_as(py, values, name, guard_error)
 }
 
 /// The running episode.

@@ -301,3 +301,12 @@ def test_the_learner_improves_on_a_real_task():
     assert 0.0 < l.radius and l.prediction_error >= 0.0
     assert l.fallback == "coordinate" and l.inner == "cmaes" and l.dimension == 3
     assert l.config["margin"] == pytest.approx(0.1)
+
+
+def test_the_module_docs_examples_run():
+    import doctest
+
+    import ctrl_adapt.model as model_module
+
+    result = doctest.testmod(model_module)
+    assert result.attempted > 0 and result.failed == 0

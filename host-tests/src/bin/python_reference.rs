@@ -295,12 +295,14 @@ fn model_run(argv: &[String]) -> Option<Result<String, String>> {
 
 fn main() -> ExitCode {
     let argv: Vec<String> = std::env::args().skip(1).collect();
-    let result = model_run(&argv).unwrap_or_else(|| parse().and_then(|(algorithm, n, args)| match n {
-        // CRS = 10(n + 1), λ = 4 + ⌊3 ln n⌋, ROCK*'s memory 5n: the package's sizes.
-        3 => at::<3, 40, 7, 15>(&algorithm, &args),
-        18 => at::<18, 190, 12, 90>(&algorithm, &args),
-        _ => Err(format!("n = {n}: the reference is written for 3 and 18")),
-    }));
+    let result = model_run(&argv).unwrap_or_else(|| {
+        parse().and_then(|(algorithm, n, args)| match n {
+            // CRS = 10(n + 1), λ = 4 + ⌊3 ln n⌋, ROCK*'s memory 5n: the package's sizes.
+            3 => at::<3, 40, 7, 15>(&algorithm, &args),
+            18 => at::<18, 190, 12, 90>(&algorithm, &args),
+            _ => Err(format!("n = {n}: the reference is written for 3 and 18")),
+        })
+    });
     match result {
         Ok(json) => {
             println!("{json}");
