@@ -95,7 +95,7 @@ def imagined_cost(model, w, start=np.zeros(4)):
     a, b, c = (float(v) for v in w)
 
     def policy(s):
-        x, angle, velocity, rate = s
+        x, angle, velocity, rate = s.tolist()
         u = pg.KP * angle + pg.KD * rate + pg.KX * x + pg.KV * velocity
         u += min(max(a * x + b * velocity + c, -pg.CLAMP), pg.CLAMP)
         return min(max(u, -3.0), 3.0)

@@ -7,7 +7,7 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::types::{PyBytes, PyDict, PyFloat, PyList};
 use rand_core::SeedableRng;
 
 use crate::guard::values_as;
@@ -28,7 +28,17 @@ fn model_error_of(why: String) -> PyErr {
 }
 
 fn floats(py: Python<'_>, values: &Bound<'_, PyAny>, name: &str, n: usize) -> PyResult<Vec<f32>> {
-    let v = values_as(py, values, name, model_error_of)?;
+    // A float (a one-dimensional command) or a list skips NumPy's conversion: a policy in a
+    // rollout returns one per tick.
+    let v = if let Ok(x) = values.downcast::<PyFloat>() {
+        vec![x.value() as f32]
+    } else if let Ok(list) = values.downcast::<PyList>()
+        && let Ok(list) = list.extract::<Vec<f64>>()
+    {
+        list.into_iter().map(|x| x as f32).collect()
+    } else {
+        values_as(py, values, name, model_error_of)?
+    };
     if v.len() != n {
         return Err(model_error(format!(
             "{name} has {} values, expected {n}",
