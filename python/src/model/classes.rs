@@ -68,7 +68,15 @@ fn json_of(py: Python<'_>, config: Option<&Bound<'_, PyDict>>) -> PyResult<Strin
     }
 }
 
-/// The library's plant model `RlsModel<S, A, R>` (see the package docs).
+/// A plant model fitted tick by tick, the firmware's `RlsModel<S, A, R>`:
+/// x' = x + Wᵀ·z, z = [state, action, 1, features], by regularised recursive least squares
+/// with forgetting.
+///
+/// `RlsModel(state_dim, action_dim, features=0, *, forgetting=0.9995, prior_variance=100.0,
+/// max_variance=1e4, error_window=1000)` (the library's `ModelConfig` defaults); `features`
+/// extra regressors of your own are passed with each tick. Raises `ModelError` (a
+/// `ValueError`) for sizes not compiled (state 1 to 8, action 1 to 2, features 0 to 2) or a
+/// configuration out of range. See `ctrl_adapt.model` for an example.
 #[pyclass(module = "ctrl_adapt._native", name = "RlsModel")]
 pub struct PyRlsModel {
     inner: Box<dyn DynModel>,
@@ -255,13 +263,13 @@ impl PyRlsModel {
         matrix(py, &p, r)
     }
 
-    /// S.
+    /// The state's size S.
     #[getter]
     fn state_dim(&self) -> usize {
         self.inner.sizes().0
     }
 
-    /// A.
+    /// The action's (command's) size A.
     #[getter]
     fn action_dim(&self) -> usize {
         self.inner.sizes().1
@@ -335,7 +343,19 @@ impl PyRlsModel {
     }
 }
 
-/// The library's model-based learner `ModelBased<F, N>` (see the package docs).
+/// The model-based learner, the firmware's `ModelBased<F, N>`: between real episodes, an
+/// inner search of your model's predicted cost in a trust region around the best real θ,
+/// screened against a reference cost, with a model-free fallback.
+///
+/// `ModelBased(lower, upper, fallback="coordinate", inner="cmaes", *, seed=0, start=None,
+/// fallback_config=None, inner_config=None, **config)`: 1 to 8 parameters; `fallback` and
+/// `inner` each `"coordinate"` or `"cmaes"`, their configurations dicts of the Rust
+/// configurations' fields (`CoordinateConfig`, `CmaesConfig`); `**config` fields of
+/// `ModelBasedConfig` (`initial_radius`, `min_radius`, `max_radius`, `grow`, `shrink`,
+/// `margin`, `inner_evaluations`, `error_weight`, `initial_error`); `start` the fallback's
+/// θ⁰ (the box's centre by default). Raises `ModelError` (a `ValueError`) for an unknown
+/// name or field, a value out of range, mismatched lengths. See `ctrl_adapt.model` for an
+/// example.
 #[pyclass(module = "ctrl_adapt._native", name = "ModelBased")]
 pub struct PyModelBased {
     inner: Box<dyn DynLearner>,
@@ -504,7 +524,7 @@ impl PyModelBased {
         self.search.name()
     }
 
-    /// `(lower, upper)`.
+    /// The box, `(lower, upper)`.
     #[getter]
     fn bounds<'py>(
         &self,
