@@ -62,7 +62,7 @@ GRID = [
     (0.3, 0.5, 0.0, 120),
     (0.3, 2.0, 0.0, 120),
 ]
-CHOSEN = None  # by the rule of the findings page, from `tune` on seeds 101–110
+CHOSEN = 0  # by the rule of the findings page, from `tune` on seeds 101–110
 
 
 def real_episode(w, seed, model, dither=0.0, rng=None):
