@@ -415,7 +415,13 @@ impl PyModelBased {
 
     /// `(theta, source, predicted)`: the θ of the next real episode, `source` `"model"`
     /// (with its predicted cost) or `"fallback"` (`predicted` None). `predict(theta)` is the
-    /// model's cost of θ (a float). Returns the pending proposal again until it is told.
+    /// model's cost of θ (a float; `nan` or `inf` where the model cannot say: ranked worse
+    /// than every prediction seen). Returns the pending proposal again until it is told.
+    ///
+    /// An exception raised inside `predict`, or a value that is not a number, stops the
+    /// proposal: the learner and its RNG are left as before the call and the exception
+    /// propagates. Raises `ModelError` when the fallback has stopped and the model's
+    /// candidate did not pass (nothing changes).
     fn propose<'py>(
         &mut self,
         py: Python<'py>,
@@ -452,13 +458,17 @@ impl PyModelBased {
         }
     }
 
-    /// The real cost of the pending proposal (rounded to float32).
+    /// The real cost of the pending proposal (rounded to float32). Raises `ModelError`
+    /// without a pending proposal or for a cost that is not a finite float32 (nothing
+    /// changes).
     fn tell(&mut self, cost: f64) -> PyResult<()> {
         self.inner.tell(crate::narrow(cost)).map_err(model_error)
     }
 
     /// Reports a real episode you chose yourself (the bare controller, an identification
     /// episode): it counts for the best θ, not for the fallback or the trust region.
+    /// Raises `ModelError` while a proposal is pending, for θ of the wrong length or
+    /// outside the box, or a cost that is not a finite float32 (nothing changes).
     fn record(&mut self, py: Python<'_>, theta: &Bound<'_, PyAny>, cost: f64) -> PyResult<()> {
         let theta = floats(py, theta, "theta", self.inner.dimension())?;
         self.inner
