@@ -310,3 +310,11 @@ def test_the_module_docs_examples_run():
 
     result = doctest.testmod(model_module)
     assert result.attempted > 0 and result.failed == 0
+
+
+def test_the_cmaes_fallback_has_the_packages_population_at_every_dimension():
+    """The learner's CMA-ES sizes are the package optimizers' (λ = 4 + ⌊3 ln n⌋)."""
+    for n in range(1, ctrl_adapt.model.MODEL_BASED_MAX_DIMENSION + 1):
+        l = ModelBased(-np.ones(n), np.ones(n), "cmaes", seed=1)
+        assert l.rust_type == f"ModelBased<{ctrl_adapt.rust_type('cmaes', n)}, {n}>"
+        assert ModelBased.load(l.save()).rust_type == l.rust_type
