@@ -251,7 +251,7 @@ struct Held<O, const N: usize>(InFlight<O, N, IN_FLIGHT>);
 /// `value`'s record, in a buffer grown until it fits: the record is at most the postcard
 /// encoding (never longer than the in-memory size for these types, plus varint slack) and
 /// a header.
-fn record_of<T: Persistent>(value: &T) -> Result<Vec<u8>, RecordError> {
+pub(crate) fn record_of<T: Persistent>(value: &T) -> Result<Vec<u8>, RecordError> {
     let mut room = core::mem::size_of::<T>() * 2 + 256;
     loop {
         let mut buf = vec![0u8; room];
@@ -356,7 +356,10 @@ where
 }
 
 /// `default` with the fields of the JSON object `json` put over it.
-fn configured<C: Serialize + DeserializeOwned>(default: C, json: &str) -> Result<C, BuildError> {
+pub(crate) fn configured<C: Serialize + DeserializeOwned>(
+    default: C,
+    json: &str,
+) -> Result<C, BuildError> {
     let bad = |e: serde_json::Error| BuildError::Config(format!("configuration: {e}"));
     let mut value = serde_json::to_value(default).map_err(bad)?;
     let given: serde_json::Value = serde_json::from_str(json).map_err(bad)?;

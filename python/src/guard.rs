@@ -394,8 +394,13 @@ fn mode_name(mode: Mode) -> &'static str {
 }
 
 /// A 1-D float64 view of `values` (NumPy's own conversion for anything but a contiguous
-/// float64 vector), as float32 values.
-fn values_of(py: Python<'_>, values: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f32>> {
+/// float64 vector), as float32 values; `error` makes the exception for what is not numbers.
+pub(crate) fn values_as(
+    py: Python<'_>,
+    values: &Bound<'_, PyAny>,
+    name: &str,
+    error: fn(String) -> PyErr,
+) -> PyResult<Vec<f32>> {
     if let Ok(a) = values.extract::<PyReadonlyArray1<'_, f64>>()
         && let Ok(s) = a.as_slice()
     {
@@ -404,10 +409,14 @@ fn values_of(py: Python<'_>, values: &Bound<'_, PyAny>, name: &str) -> PyResult<
     let np = py.import("numpy")?;
     let converted = np
         .call_method1("ascontiguousarray", (values, "float64"))
-        .map_err(|e| guard_error(format!("{name}: not an array of numbers ({e})")))?
+        .map_err(|e| error(format!("{name}: not an array of numbers ({e})")))?
         .call_method1("reshape", (-1,))?;
     let a: PyReadonlyArray1<'_, f64> = converted.extract()?;
     Ok(a.as_slice()?.iter().map(|&v| v as f32).collect())
+}
+
+fn values_of(py: Python<'_>, values: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<f32>> {
+    values_as(py, values, name, guard_error)
 }
 
 /// The running episode.

@@ -8,6 +8,7 @@
 
 pub mod dispatch;
 pub mod guard;
+pub mod model;
 
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::create_exception;
@@ -366,5 +367,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_IN_FLIGHT", dispatch::IN_FLIGHT)?;
     m.add("FORMAT_VERSION", ctrl_adapt::record::FORMAT_VERSION)?;
     guard::register(m)?;
+    model::register(m)?;
     Ok(())
 }

@@ -25,6 +25,7 @@ from ._native import FORMAT_VERSION, MAX_DIMENSION, MAX_IN_FLIGHT, OptimizerErro
 from ._native import Optimizer as _Native
 from ._native import algorithms, rust_type
 from .guard import Guard, GuardCounters, GuardError, GuardReport, Limit, Trip
+from .model import ModelBased, ModelError, RlsModel
 
 __all__ = [
     "Optimizer",
@@ -44,6 +45,10 @@ __all__ = [
     "GuardReport",
     "Limit",
     "Trip",
+    # The plant model and the model-based learner (ctrl_adapt.model).
+    "RlsModel",
+    "ModelBased",
+    "ModelError",
 ]
 
 

@@ -16,6 +16,9 @@ from .guard import GuardError as GuardError
 from .guard import GuardReport as GuardReport
 from .guard import Limit as Limit
 from .guard import Trip as Trip
+from .model import ModelBased as ModelBased
+from .model import ModelError as ModelError
+from .model import RlsModel as RlsModel
 
 def algorithms() -> list[str]: ...
 def rust_type(algorithm: str, n: int) -> str: ...
