@@ -32,6 +32,7 @@ use ctrl_adapt::model::{
 use ctrl_adapt::optimizer::{
     CemConfig, Cmaes, CmaesConfig, DiagonalCem, Optimizer, Vector, Weighting,
 };
+use experiments::model_learner::{AUV_R, AuvMap, bounded_drag};
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, AuvController, P, RADIUS};
 use rand_core::SeedableRng;
@@ -129,7 +130,7 @@ fn run<O: Optimizer<P>>(
             let guard = Guard::<2, TICKS>::try_new(config(&s, [far, forecast_limit])).unwrap();
             let model = OnlineModel::new(
                 RlsModel::try_new(ModelConfig::DEFAULT).unwrap(),
-                AffineWith::new(features as fn(&Vector<6>, &Vector<3>) -> Vector<4>),
+                AffineWith::new(bounded_drag as fn(&Vector<6>, &Vector<3>) -> Vector<4>),
             );
             let adapter = adapter
                 .with_guard(guard)
@@ -144,26 +145,8 @@ fn run<O: Optimizer<P>>(
     }
 }
 
-/// The plant model's regressors: the bounded-drag features of `findings/model.md` (R = 14:
-/// the state, the command, 1, a depth-layer indicator and |v|·v per axis with v clamped to
-/// the vehicle's reach).
-fn features(x: &Vector<6>, _: &Vector<3>) -> Vector<4> {
-    const LAYER: f32 = 2.0;
-    const TARGET_DEPTH: f32 = 4.8;
-    let q = |v: f32| {
-        let v = v.clamp(-0.6, 0.6);
-        v.abs() * v
-    };
-    let layer = if TARGET_DEPTH - x[2] > LAYER {
-        1.0
-    } else {
-        0.0
-    };
-    Vector::<4>::new(layer, q(x[3]), q(x[4]), q(x[5]))
-}
-
-type Features = AffineWith<4, fn(&Vector<6>, &Vector<3>) -> Vector<4>>;
-type Model = OnlineModel<Features, 6, 3, 14>;
+/// The plant model the adapter feeds: the bounded-drag regressors of `findings/model.md`.
+type Model = OnlineModel<AuvMap, 6, 3, AUV_R>;
 
 /// The predictive trip's signal at `tick` (before this tick's control), as a multiple of the
 /// bare cost: the survey cost the episode would end with if the candidate ran `LOOKAHEAD`
