@@ -9,16 +9,22 @@
 //! number of steps, checking that every candidate is finite and inside the box and that the
 //! best stays there; [`run_adapter`] runs episodes of control ticks, checking that every
 //! learning or deployed θ lies in the optimizer's box and every action is finite, within
-//! the PD's limit and within the correction envelope of the nominal action. Broken checks
-//! and panics are counted, the first one kept with the byte and the pattern.
+//! the PD's limit and within the correction envelope of the nominal action (with a runtime
+//! guard and a plant model too); [`run_model_based`] proposes and tells with the
+//! model-based learner, checking every proposal, the trust region and the best;
+//! [`run_rls_model`] fits ticks (non-finite and huge ones among them) to a plant model,
+//! checking that it stays a valid state. Broken checks and panics are counted, the first
+//! one kept with the byte and the pattern.
 
 use std::collections::BTreeMap;
 use std::fmt;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
-use ctrl_adapt::controller::{Adapter, Controller, Mode};
+use ctrl_adapt::controller::guard::Supervisor;
+use ctrl_adapt::controller::{Adapter, Controller, Mode, Unguarded};
 use ctrl_adapt::cost::QuadraticCost;
-use ctrl_adapt::optimizer::{Error, Optimizer, Vector};
+use ctrl_adapt::model::{Affine, ModelBased, RlsModel, TickModel, Unmodelled};
+use ctrl_adapt::optimizer::{Bounds, CoordinateConfig, CoordinateSearch, Error, Optimizer, Vector};
 use ctrl_adapt::record::{self, Persistent};
 use rand_core::{RngCore, SeedableRng};
 
@@ -193,16 +199,18 @@ pub fn run_optimizer<const N: usize, O: Optimizer<N>>(
 }
 
 /// The adapter the forgeries of [`run_adapter`] hold: the adversarial driver's controller
-/// (one axis, PD limit 2, correction envelope 0.5) and a quadratic cost.
-pub type ForgedAdapter<O> = Adapter<O, DriverController, QuadraticCost<1>, 2, 2, 1>;
+/// (one axis, PD limit 2, correction envelope 0.5) and a quadratic cost, with the guard `G`
+/// and the plant model `M` (none by default).
+pub type ForgedAdapter<O, G = Unguarded, M = Unmodelled> =
+    Adapter<O, DriverController, QuadraticCost<1>, 2, 2, 1, G, M>;
 
 /// `episodes` episodes of `ticks` control ticks of `adapter` (a running episode is ended
 /// first), on states drawn in [−2, 2]²: every θ it begins in [`Mode::Learn`] or
 /// [`Mode::Deploy`] must be finite and inside the optimizer's box; every action finite,
 /// within the PD's limit, and within the correction envelope of the nominal action;
 /// beginning and ending episodes must not fail. Returns the ticks run.
-pub fn run_adapter<O: Optimizer<2>>(
-    mut adapter: ForgedAdapter<O>,
+pub fn run_adapter<O: Optimizer<2>, G: Supervisor<2>, M: TickModel<2, 1>>(
+    mut adapter: ForgedAdapter<O, G, M>,
     rng: &mut DriverRng,
     episodes: u64,
     ticks: u64,
@@ -287,10 +295,15 @@ pub fn mid_run<const N: usize, O: Optimizer<N> + Persistent>(
 
 /// The record of `adapter` after `episodes` episodes of three ticks, within a fourth after
 /// its first tick; every state on the way must load back as itself.
-pub fn adapter_mid_run<O: Optimizer<2> + Persistent>(
-    mut adapter: ForgedAdapter<O>,
+pub fn adapter_mid_run<O, G, M>(
+    mut adapter: ForgedAdapter<O, G, M>,
     episodes: usize,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, String>
+where
+    O: Optimizer<2> + Persistent,
+    G: Supervisor<2> + Persistent,
+    M: TickModel<2, 1> + Persistent,
+{
     let mut rng = DriverRng::seed_from_u64(0);
     round_trip(&adapter, "fresh")?;
     for episode in 0..=episodes {
@@ -311,4 +324,188 @@ pub fn adapter_mid_run<O: Optimizer<2> + Persistent>(
         round_trip(&adapter, &format!("after episode {episode}"))?;
     }
     Err("no episode".to_string())
+}
+
+/// The learner the forgeries of [`run_model_based`] hold: the model-based learner over two
+/// weights, with a coordinate search as its fallback.
+pub type ForgedModelBased = ModelBased<CoordinateSearch<2>, 2>;
+
+/// The inner search of [`run_model_based`]'s proposals: a coordinate search from the trust
+/// region's centre.
+fn inner_search(bounds: Bounds<2>, start: Vector<2>) -> Result<CoordinateSearch<2>, Error> {
+    CoordinateSearch::try_new(bounds, start, CoordinateConfig::DEFAULT)
+}
+
+/// A plant model's prediction of [`sphere`], off by a shift of 0.05, and now and then an
+/// error (a diverging imagined episode) or a non-finite value.
+fn model_of_sphere(theta: &Vector<2>, rng: &mut impl RngCore) -> Result<f32, Error> {
+    match rng.next_u32() % 64 {
+        0 => Err(Error::NonFinite("prediction")),
+        1 => Ok(f32::NAN),
+        2 => Ok(f32::INFINITY),
+        _ => Ok((theta - Vector::repeat(0.25)).norm_squared()),
+    }
+}
+
+/// One proposal and its real episode (on [`sphere`]); every third step, when nothing is
+/// pending, also an exploration episode of the caller's own ([`ModelBased::record`]).
+/// Checks the proposal (finite, in the box, the pending one), the trust radius (within the
+/// configured range), the measured prediction error (finite, ≥ 0) and the best (finite, in
+/// the box, never worse). `Ok(false)` when the fallback is spent.
+fn model_based_step(
+    learner: &mut ForgedModelBased,
+    rng: &mut DriverRng,
+    step: u64,
+) -> Result<bool, String> {
+    let bounds = *learner.fallback().bounds();
+    let before = learner.best().map_or(f32::INFINITY, |b| b.cost);
+    if step % 3 == 2 && learner.pending().is_none() {
+        let theta = Vector::<2>::from_fn(|_, _| unit(rng) * 2.0 - 1.0);
+        let theta = bounds.clamp(&theta);
+        learner
+            .record(theta, sphere(&theta, rng))
+            .map_err(|e| format!("record {step}: {e}"))?;
+    }
+    let mut model_rng = DriverRng::seed_from_u64(step);
+    let proposal = match learner.propose(rng, inner_search, |theta| {
+        model_of_sphere(theta, &mut model_rng)
+    }) {
+        Ok(p) => p,
+        Err(Error::Stopped) => return Ok(false),
+        Err(e) => return Err(format!("propose {step}: {e}")),
+    };
+    let theta = proposal.theta;
+    if bounds.check(&theta, "theta").is_err() || learner.pending().map(|p| p.theta) != Some(theta) {
+        return Err(format!(
+            "propose {step}: θ {theta:?} in the box {bounds:?}?"
+        ));
+    }
+    learner
+        .tell(sphere(&theta, rng))
+        .map_err(|e| format!("tell {step}: {e}"))?;
+    let config = learner.config();
+    let radius = learner.radius();
+    if !(radius >= config.min_radius && radius <= config.max_radius) {
+        return Err(format!("tell {step}: radius {radius:e} outside its range"));
+    }
+    let error = learner.prediction_error();
+    if !(error.is_finite() && error >= 0.0) {
+        return Err(format!("tell {step}: prediction error {error:e}"));
+    }
+    match learner.best() {
+        Some(best)
+            if bounds.check(&best.theta, "best").is_err()
+                || !best.cost.is_finite()
+                || best.cost > before =>
+        {
+            Err(format!("tell {step}: best {best:?} (before {before:e})"))
+        }
+        None => Err(format!("tell {step}: no best after a real episode")),
+        Some(_) => Ok(true),
+    }
+}
+
+/// Up to `steps` proposals of `learner` and their real episodes on [`sphere`], the model's
+/// predictions off by a shift and sometimes failing (see [`model_based_step`] for the
+/// checks). A proposal pending in the record is told first. Returns the steps run.
+pub fn run_model_based(
+    mut learner: ForgedModelBased,
+    rng: &mut DriverRng,
+    steps: u64,
+) -> Result<u64, String> {
+    for step in 0..steps {
+        if !model_based_step(&mut learner, rng, step)? {
+            return Ok(step);
+        }
+    }
+    Ok(steps)
+}
+
+/// The record of `learner` after a reference cost and `steps` proposals with their real
+/// episodes, then one more proposal (so that one is pending); every state on the way must
+/// load back as itself.
+pub fn model_based_mid_run(mut learner: ForgedModelBased, steps: u64) -> Result<Vec<u8>, String> {
+    let mut rng = DriverRng::seed_from_u64(0);
+    round_trip(&learner, "fresh")?;
+    learner
+        .set_reference(sphere(&Vector::<2>::zeros(), &mut rng))
+        .map_err(|e| format!("reference: {e}"))?;
+    for step in 0..steps {
+        if !model_based_step(&mut learner, &mut rng, step)? {
+            return Err(format!("the fallback stopped after {step} steps"));
+        }
+        round_trip(&learner, &format!("after step {step}"))?;
+    }
+    let mut model_rng = DriverRng::seed_from_u64(steps);
+    learner
+        .propose(&mut rng, inner_search, |theta| {
+            model_of_sphere(theta, &mut model_rng)
+        })
+        .map_err(|e| format!("the last proposal: {e}"))?;
+    round_trip(&learner, "with a proposal pending")
+}
+
+/// The plant model the forgeries of [`run_rls_model`] hold: two states, one command, the
+/// affine regressors.
+pub type ForgedRlsModel = RlsModel<2, 1, 4>;
+
+/// A damped linear plant x' = A·x + B·u + c with a little noise, and a command drawn in
+/// [−2, 2]; one tick in 50 non-finite and one in 50 huge (about 10³⁰).
+fn plant_tick(x: &Vector<2>, rng: &mut impl RngCore) -> (Vector<2>, Vector<1>, Vector<2>) {
+    let u = Vector::<1>::new((unit(rng) - 0.5) * 4.0);
+    let next = Vector::<2>::new(
+        0.9 * x[0] + 0.1 * x[1] + 0.01 * (unit(rng) - 0.5),
+        -0.2 * x[0] + 0.8 * x[1] + 0.5 * u[0] + 0.1 + 0.01 * (unit(rng) - 0.5),
+    );
+    match rng.next_u32() % 50 {
+        0 => (*x, u, Vector::repeat(f32::NAN)),
+        1 => (*x * 1e30, u, next),
+        _ => (*x, u, next),
+    }
+}
+
+/// `ticks` ticks of the plant of [`plant_tick`] fitted by `model`, from a random state (the
+/// plant's state reset when it leaves [−10, 10]²): each fit must succeed or be refused as
+/// non-finite, and leave a valid state; a prediction from a finite tick must not panic.
+/// Returns the ticks run.
+pub fn run_rls_model(
+    mut model: ForgedRlsModel,
+    rng: &mut DriverRng,
+    ticks: u64,
+) -> Result<u64, String> {
+    let mut x = Vector::<2>::from_fn(|_, _| (unit(rng) - 0.5) * 4.0);
+    for tick in 0..ticks {
+        let (state, command, next) = plant_tick(&x, rng);
+        let _ = model.predict(&Affine, &state, &command);
+        match model.update(&Affine, &state, &command, &next) {
+            Ok(_) | Err(Error::NonFinite(_)) => {}
+            Err(e) => return Err(format!("tick {tick}: {e}")),
+        }
+        model
+            .validate()
+            .map_err(|e| format!("tick {tick}: the fitted model is invalid: {e}"))?;
+        x = if next.iter().all(|v| v.is_finite() && v.abs() <= 10.0) {
+            next
+        } else {
+            Vector::from_fn(|_, _| (unit(rng) - 0.5) * 4.0)
+        };
+    }
+    Ok(ticks)
+}
+
+/// The record of `model` after `ticks` ticks of [`run_rls_model`]'s plant; every state on
+/// the way must load back as itself.
+pub fn rls_model_mid_run(mut model: ForgedRlsModel, ticks: u64) -> Result<Vec<u8>, String> {
+    let mut rng = DriverRng::seed_from_u64(0);
+    round_trip(&model, "fresh")?;
+    let mut x = Vector::<2>::zeros();
+    for tick in 0..ticks {
+        let (state, command, next) = plant_tick(&x, &mut rng);
+        let _ = model.update(&Affine, &state, &command, &next);
+        round_trip(&model, &format!("after tick {tick}"))?;
+        if next.iter().all(|v| v.is_finite() && v.abs() <= 10.0) {
+            x = next;
+        }
+    }
+    round_trip(&model, "at the end")
 }

@@ -8,7 +8,8 @@
 //! in any order, cancelled and made up, mixed with the sequential calls.
 //!
 //! The `forged_*` tests run the forged-record sweep ([`host_tests::forgery`]) on every
-//! persistent optimizer and on an adapter: a record taken mid-run, every byte overwritten in
+//! persistent optimizer, on an adapter (also with a guard and a plant model), on the
+//! model-based learner and on a plant model: a record taken mid-run, every byte overwritten in
 //! turn (0x00, 0xFF, 0x7F, +1; NaN and ±∞ over every four bytes), the checksum recomputed;
 //! what loads runs 1,000 asks and tells (5,000 in release, on records taken at three points
 //! of the run) without a panic, a non-finite θ, a θ outside the box or an action outside the
@@ -30,9 +31,11 @@ use host_tests::adversarial::{
     drive_in_conditions, drive_in_flight, field, point_in,
 };
 use host_tests::forgery::{
-    self, ForgedAdapter, Forgeries, adapter_mid_run, mid_run, run_adapter, run_optimizer,
+    self, ForgedAdapter, ForgedModelBased, ForgedRlsModel, Forgeries, adapter_mid_run, mid_run,
+    model_based_mid_run, rls_model_mid_run, run_adapter, run_model_based, run_optimizer,
+    run_rls_model,
 };
-use rand_core::RngCore;
+use rand_core::{RngCore, SeedableRng};
 
 /// Operations per optimizer: the million in release, fewer in debug builds.
 const OPERATIONS: u64 = if cfg!(debug_assertions) {
@@ -681,6 +684,121 @@ fn forged_adapter() {
             &format!("Adapter<Cmaes<2, 4>> after {cut} episodes"),
             result,
         );
+    }
+}
+
+/// The adapter of `forged_adapter` with a runtime guard (a limit on each state coordinate,
+/// an envelope learned from three bare episodes) and a plant model fitted to every tick:
+/// the guard's envelope, counters and running trip and the model's fit are in the record
+/// too.
+#[test]
+fn forged_guarded_and_modelled_adapter() {
+    use ctrl_adapt::controller::guard::{Guard, GuardConfig, Limit, Source};
+    use ctrl_adapt::model::{Affine, ModelConfig, OnlineModel, RlsModel};
+    type Forged = ForgedAdapter<CoordinateSearch<2>, Guard<2, 8>, OnlineModel<Affine, 2, 1, 4>>;
+    let pd = Pd::<1>::try_new(Vector::repeat(3.0), Vector::repeat(0.7))
+        .and_then(|pd| pd.with_limit(Vector::repeat(ACTION_LIMIT)))
+        .unwrap();
+    let policy =
+        LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(ENVELOPE)).unwrap();
+    let config = AdapterConfig {
+        dt: 0.1,
+        failure_cost: 100.0,
+        max_faulty_ticks: 0,
+        learning_episodes: 1_000,
+    };
+    let search = CoordinateSearch::<2>::try_new(unit_box(), Vector::zeros(), FINE_SEARCH).unwrap();
+    let limit = |k: u16| Limit {
+        source: Source::State(k),
+        low: -1.5,
+        high: 1.5,
+    };
+    let guard = Guard::<2, 8>::try_new(GuardConfig {
+        limits: [limit(0), limit(1)],
+        relative_margin: 0.5,
+        absolute_margin: 0.1,
+        ..GuardConfig::DEFAULT
+    })
+    .unwrap();
+    let model = OnlineModel::new(RlsModel::try_new(ModelConfig::default()).unwrap(), Affine);
+    let shaper = QuadraticCost::try_new(Vector::repeat(1.0)).unwrap();
+    let mut adapter: Forged = Adapter::try_new(
+        search,
+        CorrectedPd::new(pd, policy),
+        shaper,
+        config,
+        Vector::zeros(),
+    )
+    .unwrap()
+    .with_guard(guard)
+    .and_then(|a| a.with_model(model))
+    .unwrap();
+    // Three bare episodes teach the guard its envelope.
+    adapter
+        .set_mode(ctrl_adapt::controller::Mode::Nominal)
+        .unwrap();
+    let mut rng = host_tests::adversarial::DriverRng::seed_from_u64(7);
+    for _ in 0..3 {
+        adapter.begin_episode(&mut rng).unwrap();
+        for _ in 0..8 {
+            let state = Vector::<2>::from_fn(|_, _| rng.next_u32() as f32 / u32::MAX as f32 - 0.5);
+            adapter.control(&state, &Vector::from([state[0]]));
+        }
+        adapter.end_episode().unwrap();
+    }
+    adapter
+        .set_mode(ctrl_adapt::controller::Mode::Learn)
+        .unwrap();
+    for &cut in CUTS {
+        let result = adapter_mid_run(adapter, cut).map(|record| {
+            forgery::sweep::<Forged>(&record, |a, rng| run_adapter(a, rng, FORGED_STEPS / 10, 10))
+        });
+        forged_report(
+            &format!(
+                "Adapter<CoordinateSearch<2>> with Guard<2, 8> and a plant model after {cut} episodes"
+            ),
+            result,
+        );
+    }
+}
+
+/// The model-based learner: each loaded forgery proposes (a coordinate search on a model
+/// that is off by a shift and sometimes fails) and is told real costs, a tenth of
+/// [`FORGED_STEPS`] proposals (each of them 30 predictions).
+#[test]
+fn forged_model_based() {
+    use ctrl_adapt::model::{ModelBased, ModelBasedConfig};
+    let fallback =
+        CoordinateSearch::<2>::try_new(unit_box(), Vector::zeros(), FINE_SEARCH).unwrap();
+    let config = ModelBasedConfig {
+        inner_evaluations: 30,
+        ..ModelBasedConfig::DEFAULT
+    };
+    let learner: ForgedModelBased = ModelBased::try_new(unit_box(), fallback, config).unwrap();
+    for &cut in CUTS {
+        let result = model_based_mid_run(learner, cut as u64).map(|record| {
+            forgery::sweep::<ForgedModelBased>(&record, |l, rng| {
+                run_model_based(l, rng, FORGED_STEPS / 10)
+            })
+        });
+        forged_report(
+            &format!("ModelBased<CoordinateSearch<2>, 2> after {cut} proposals"),
+            result,
+        );
+    }
+}
+
+/// The plant model alone: each loaded forgery fits [`FORGED_STEPS`] ticks of a linear
+/// plant (non-finite and huge ticks among them) and must stay a valid state.
+#[test]
+fn forged_rls_model() {
+    use ctrl_adapt::model::{ModelConfig, RlsModel};
+    let model: ForgedRlsModel = RlsModel::try_new(ModelConfig::default()).unwrap();
+    for &cut in CUTS {
+        let result = rls_model_mid_run(model, cut as u64).map(|record| {
+            forgery::sweep::<ForgedRlsModel>(&record, |m, rng| run_rls_model(m, rng, FORGED_STEPS))
+        });
+        forged_report(&format!("RlsModel<2, 1, 4> after {cut} ticks"), result);
     }
 }
 

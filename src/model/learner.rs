@@ -362,11 +362,17 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
         };
         let r = self.radius;
         let (lower, upper) = (self.bounds.lower(), self.bounds.upper());
+        // A radius below the spacing of f32 around the centre (a tiny `min_radius`) leaves
+        // no box to search: the fallback proposes.
         let trust = Bounds::try_new(
             Vector::<N>::from_fn(|i, _| max(centre[i] - r, lower[i])),
             Vector::<N>::from_fn(|i, _| min(centre[i] + r, upper[i])),
-        )?;
-        let mut search = inner(trust, centre)?;
+        )
+        .ok();
+        let mut search = match trust {
+            Some(trust) => Some(inner(trust, centre)?),
+            None => None,
+        };
         let mut worst = f32::MIN;
         let weight = self.config.uncertainty_weight;
         // J(θ) = cost + k_u·uncertainty and the point cost, or None when either is unusable.
@@ -384,6 +390,7 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
         // The candidate's θ, J and point cost.
         let mut best_model: Option<(Vector<N>, f32, f32)> = None;
         for _ in 0..self.config.inner_evaluations {
+            let Some(search) = search.as_mut() else { break };
             let Ok(theta) = search.ask(rng) else { break };
             let cost = match objective(&theta) {
                 Some((c, point)) => {
@@ -646,6 +653,22 @@ mod tests {
             .propose(&mut rng(2), inner, |_| Err(Error::NonFinite("prediction")))
             .unwrap();
         assert_eq!(p.source, Source::Fallback);
+    }
+
+    #[test]
+    fn a_radius_below_the_f32_spacing_falls_back_instead_of_failing() {
+        // A valid but tiny radius: 0.3 ± 1e-12 is 0.3 in f32, so the trust region has no
+        // width (found by the forged-record sweep, where a forged `min_radius` got there).
+        let mut l = learner(ModelBasedConfig {
+            min_radius: 1e-12,
+            initial_radius: 1e-12,
+            ..ModelBasedConfig::DEFAULT
+        });
+        l.record(Vector::repeat(0.3), real(&Vector::repeat(0.3)))
+            .unwrap();
+        let p = l.propose(&mut rng(1), inner, |t| Ok(real(t))).unwrap();
+        assert_eq!(p.source, Source::Fallback);
+        l.tell(real(&p.theta)).unwrap();
     }
 
     #[test]
