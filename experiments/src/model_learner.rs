@@ -104,7 +104,8 @@ pub struct Settings<const P: usize> {
     pub margin: f32,
     /// Exploration episodes after the bare one.
     pub explorations: usize,
-    /// Their half-widths: u uniform in ±`explore` per coordinate.
+    /// Their half-widths: u uniform in ±`explore` per coordinate (0: the bare θ, an episode
+    /// that only feeds the plant's model, see [`learn`]).
     pub explore: Vector<P>,
     /// The initial prediction error.
     pub initial_error: InitialError,
@@ -215,7 +216,12 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         learner_time: Duration::ZERO,
     };
     for (u, e, predicted) in explored {
-        learner.record(u, e.cost.min(f32::MAX))?;
+        // An exploration of u = 0 (half-widths 0) is the bare θ again, a plant's
+        // identification episode (`auv_guard::GuardedAuv` dithers its commands): the bare
+        // episode's cost stands for u = 0, so it only feeds the model.
+        if u.iter().any(|v| *v != 0.0) {
+            learner.record(u, e.cost.min(f32::MAX))?;
+        }
         run.costs.push(e.cost);
         run.origin.push(Origin::Explore);
         run.flagged.push(e.flagged);
