@@ -25,6 +25,7 @@
 //!   command noise uniform in ±D m/s per axis and tick: they feed the model, teach the
 //!   guard's envelope, and are not recorded as candidates), the proposals guarded.
 
+use ctrl_adapt::model::ModelBasedConfig;
 use ctrl_adapt::optimizer::Vector;
 use experiments::auv_guard::{GuardedAuv, GuardedSettings, PREDICTIVE};
 use experiments::model_learner::{Origin, Settings, auv_fallback, inner_cmaes, learn};
@@ -41,6 +42,10 @@ struct Setting {
     name: &'static str,
     plant: GuardedSettings,
     explore: f32,
+    /// `model_learner::Settings::restart`.
+    restart: Option<usize>,
+    /// `ModelBasedConfig::min_radius`.
+    min_radius: f32,
 }
 
 fn settings() -> Vec<Setting> {
@@ -54,6 +59,8 @@ fn settings() -> Vec<Setting> {
         name,
         plant: GuardedSettings { dither, ..plant },
         explore: 0.0,
+        restart: None,
+        min_radius: 0.05,
     };
     vec![
         Setting {
@@ -63,11 +70,15 @@ fn settings() -> Vec<Setting> {
                 ..plant
             },
             explore: 0.05,
+            restart: None,
+            min_radius: 0.05,
         },
         Setting {
             name: "guard",
             plant,
             explore: 0.05,
+            restart: None,
+            min_radius: 0.05,
         },
         Setting {
             name: "guard-proposals",
@@ -76,10 +87,51 @@ fn settings() -> Vec<Setting> {
                 ..plant
             },
             explore: 0.05,
+            restart: None,
+            min_radius: 0.05,
         },
         dither("dither-0.02", 0.02),
         dither("dither-0.05", 0.05),
         dither("dither-0.1", 0.1),
+        Setting {
+            restart: Some(5),
+            ..dither("dither-0.05-restart-5", 0.05)
+        },
+        Setting {
+            restart: Some(10),
+            ..dither("dither-0.05-restart-10", 0.05)
+        },
+        Setting {
+            name: "off-restart-5",
+            plant: GuardedSettings {
+                guard: None,
+                ..plant
+            },
+            explore: 0.05,
+            restart: Some(5),
+            min_radius: 0.05,
+        },
+        Setting {
+            name: "guard-restart-5",
+            plant,
+            explore: 0.05,
+            restart: Some(5),
+            min_radius: 0.05,
+        },
+        Setting {
+            name: "guard-proposals-restart-5",
+            plant: GuardedSettings {
+                guard_explorations: false,
+                ..plant
+            },
+            explore: 0.05,
+            restart: Some(5),
+            min_radius: 0.05,
+        },
+        Setting {
+            min_radius: 0.15,
+            ..dither("dither-0.05-min-radius-0.15", 0.05)
+        },
     ]
 }
 
@@ -99,10 +151,16 @@ fn run(task: Task, seed: u64, setting: &Setting) -> Outcome {
     let auv = trial.auv().expect("an AUV task").clone();
     let mut plant = GuardedAuv::new(auv, setting.plant, seed).expect("valid guard");
     let mut rng = Xoshiro128PlusPlus::seed_from_u64(seed);
+    let chosen = Settings::chosen(240);
     let learner = Settings {
+        config: ModelBasedConfig {
+            min_radius: setting.min_radius,
+            ..chosen.config
+        },
         explorations: setting.plant.explorations,
         explore: Vector::repeat(setting.explore),
-        ..Settings::chosen(240)
+        restart: setting.restart,
+        ..chosen
     };
     let run = learn(
         &mut plant,
@@ -114,6 +172,19 @@ fn run(task: Task, seed: u64, setting: &Setting) -> Outcome {
         &mut rng,
     )
     .expect("a finite bare cost");
+    if std::env::var("PREDICTED").is_ok() {
+        let pairs: Vec<String> = (0..run.costs.len().min(40))
+            .map(|k| {
+                format!(
+                    "{k}{}:{:.2}/{}",
+                    run.origin[k].letter(),
+                    run.costs[k],
+                    run.predicted[k].map_or("-".into(), |p| format!("{p:.2}"))
+                )
+            })
+            .collect();
+        println!("    {} seed {seed}: {}", task.name(), pairs.join(" "));
+    }
     let episodes = &plant.episodes;
     let mut trace = String::new();
     for (k, (e, o)) in episodes.iter().zip(&run.origin).enumerate() {

@@ -23,6 +23,8 @@ use host_tests::auv_task::{self, AuvController, P, RADIUS};
 use rand_core::{RngCore, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
+use ctrl_adapt::model::Prediction;
+
 use crate::model_learner::{AUV_DT, AUV_R, AuvMap, AuvModels, Plant, Real, bounded_drag};
 
 /// Ticks of an episode (24 s at 10 Hz), the envelope's length.
@@ -407,5 +409,9 @@ impl Plant<P> for GuardedAuv {
 
     fn predict(&self, u: &Vector<P>) -> Result<f32, Error> {
         self.models.predict(u)
+    }
+
+    fn prediction(&self, u: &Vector<P>) -> Result<Prediction, Error> {
+        self.models.prediction(u)
     }
 }

@@ -109,6 +109,11 @@ pub struct Settings<const P: usize> {
     pub explore: Vector<P>,
     /// The initial prediction error.
     pub initial_error: InitialError,
+    /// Restart the trust region after this many consecutive proposals that did not improve
+    /// the best real θ while its radius was at `config.min_radius` (the learner is rebuilt
+    /// around the best real θ with the initial radius, its fallback as it was; TuRBO's
+    /// restart of a collapsed trust region, Eriksson et al. 2019); `None`: never.
+    pub restart: Option<usize>,
 }
 
 impl<const P: usize> Settings<P> {
@@ -125,6 +130,7 @@ impl<const P: usize> Settings<P> {
             explorations: 3,
             explore: Vector::repeat(0.05),
             initial_error: InitialError::Fixed(0.0),
+            restart: None,
         }
     }
 }
@@ -174,7 +180,7 @@ fn uniform<const P: usize>(rng: &mut impl RngCore, half_width: &Vector<P>) -> Ve
 pub fn learn<const P: usize, O: Optimizer<P>>(
     plant: &mut impl Plant<P>,
     bounds: Bounds<P>,
-    fallback: impl Optimizer<P>,
+    fallback: impl Optimizer<P> + Clone,
     mut inner: impl FnMut(Bounds<P>, Vector<P>) -> Result<O, Error>,
     settings: &Settings<P>,
     budget: usize,
@@ -229,7 +235,17 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         run.uncertainty.push(None);
         run.errors.push(learner.prediction_error());
     }
+    let mut stalled = 0;
     while run.costs.len() < budget {
+        if settings.restart.is_some_and(|r| stalled >= r) {
+            let best = learner.best().ok_or(Error::InvalidParameter("best"))?;
+            learner = ModelBased::try_new(bounds, learner.fallback().clone(), config)?;
+            learner.set_reference(bare.cost)?;
+            learner.record(best.theta, best.cost)?;
+            stalled = 0;
+        }
+        let at_min = learner.radius() <= config.min_radius;
+        let best_before = learner.best().map(|b| b.cost);
         let error = learner.prediction_error();
         let t0 = Instant::now();
         let proposal =
@@ -256,6 +272,8 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         if told.is_err() {
             break;
         }
+        let improved = learner.best().map(|b| b.cost) != best_before;
+        stalled = if at_min && !improved { stalled + 1 } else { 0 };
     }
     run.best = learner.best().map(|b| to_vec(&b.theta));
     Ok(run)
