@@ -911,6 +911,74 @@ mod tests {
         }
     }
 
+    /// A plant whose model is wrong about the optimum's side: real cost |u − 0.3|² + 1 per
+    /// coordinate, predicted |u + 0.5|², so that every model step from u = 0 goes the wrong
+    /// way; it records every u it runs.
+    struct Misled {
+        runs: Vec<Vector<2>>,
+    }
+
+    impl Plant<2> for Misled {
+        fn episode(&mut self, u: &Vector<2>) -> Real {
+            self.runs.push(*u);
+            Real {
+                cost: (u - Vector::repeat(0.3)).norm_squared() + 1.0,
+                flagged: false,
+            }
+        }
+
+        fn predict(&self, u: &Vector<2>) -> Result<f32, Error> {
+            Ok((u + Vector::repeat(0.5)).norm_squared())
+        }
+    }
+
+    /// The restart of a collapsed trust region (seed 7, 30 episodes, no explorations): the
+    /// misled model's steps never improve on u = 0, so the radius shrinks to its minimum
+    /// 0.05 and, without a restart, every later step stays within it; with a restart after
+    /// 3 stalled steps the radius is back at 0.15 and later steps go beyond 0.1 again.
+    #[test]
+    fn a_collapsed_trust_region_restarts() {
+        let widest_late_step = |restart: Option<usize>| {
+            let mut plant = Misled { runs: Vec::new() };
+            let fallback = CoordinateSearch::try_new(
+                unit_box(),
+                Vector::zeros(),
+                CoordinateConfig {
+                    initial_step: 0.1,
+                    max_evaluations: 30,
+                    ..CoordinateConfig::DEFAULT
+                },
+            )
+            .unwrap();
+            let settings = Settings {
+                explorations: 0,
+                restart,
+                ..Settings::chosen(50)
+            };
+            let mut rng = Xoshiro128PlusPlus::seed_from_u64(7);
+            let run = learn(
+                &mut plant,
+                unit_box(),
+                fallback,
+                inner_cmaes::<2, 6>(50),
+                &settings,
+                30,
+                &mut rng,
+            )
+            .unwrap();
+            assert_eq!(run.costs.len(), 30);
+            // The best stays the bare u = 0: no step improves on it.
+            assert_eq!(run.best, Some(vec![0.0, 0.0]));
+            assert!(run.origin[1..].iter().all(|o| *o == Origin::Model));
+            plant.runs[10..]
+                .iter()
+                .map(|u| u.amax())
+                .fold(0.0f32, f32::max)
+        };
+        assert!(widest_late_step(None) <= 0.05);
+        assert!(widest_late_step(Some(3)) > 0.1);
+    }
+
     /// The oracle's `model` method on the AUV (seed 1, 6 episodes): its first episode is
     /// the bare controller's, of the trial's own start cost, every episode is counted by
     /// the trial, the fallback episodes are reported, and the returned θ is the best
