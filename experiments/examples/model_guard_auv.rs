@@ -173,7 +173,7 @@ fn run(task: Task, seed: u64, setting: &Setting) -> Outcome {
     )
     .expect("a finite bare cost");
     if std::env::var("PREDICTED").is_ok() {
-        let pairs: Vec<String> = (0..run.costs.len().min(40))
+        let pairs: Vec<String> = (0..run.costs.len().min(std::env::var("PREDICTED").ok().and_then(|v| v.parse().ok()).unwrap_or(40)))
             .map(|k| {
                 format!(
                     "{k}{}:{:.2}/{}",
