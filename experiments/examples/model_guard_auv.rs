@@ -23,7 +23,12 @@
 //! * `guard-proposals`: the explorations unguarded, the proposals guarded;
 //! * `dither-D`: the 3 explorations replaced by dithered bare episodes (the bare PD with a
 //!   command noise uniform in ±D m/s per axis and tick: they feed the model, teach the
-//!   guard's envelope, and are not recorded as candidates), the proposals guarded.
+//!   guard's envelope, and are not recorded as candidates), the proposals guarded;
+//! * `…-restart-R`: the trust region restarted after R stalled proposals at its minimum
+//!   radius (`model_learner::Settings::restart`); `…-min-radius-0.15`: a minimum radius of
+//!   0.15 instead of 0.05.
+//!
+//! `PREDICTED=N` prints each run's first N episodes as origin, real cost / predicted cost.
 
 use ctrl_adapt::model::ModelBasedConfig;
 use ctrl_adapt::optimizer::Vector;
@@ -173,7 +178,12 @@ fn run(task: Task, seed: u64, setting: &Setting) -> Outcome {
     )
     .expect("a finite bare cost");
     if std::env::var("PREDICTED").is_ok() {
-        let pairs: Vec<String> = (0..run.costs.len().min(std::env::var("PREDICTED").ok().and_then(|v| v.parse().ok()).unwrap_or(40)))
+        let pairs: Vec<String> = (0..run.costs.len().min(
+            std::env::var("PREDICTED")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(40),
+        ))
             .map(|k| {
                 format!(
                     "{k}{}:{:.2}/{}",
