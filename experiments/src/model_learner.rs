@@ -175,7 +175,8 @@ fn uniform<const P: usize>(rng: &mut impl RngCore, half_width: &Vector<P>) -> Ve
 /// The learner on `plant` for at most `budget` real episodes (fewer if the fallback is
 /// spent while the model's candidate does not pass): the bare controller (u = 0), the
 /// exploration draws (each predicted before it runs), then `ModelBased` with `fallback`
-/// and the inner optimizer `inner` builds, its threshold the bare cost plus the margin.
+/// and the inner optimizer `inner` builds, its threshold the bare cost plus the margin,
+/// rebuilt around its best real u when its trust region has stalled ([`Settings::restart`]).
 /// Errors: the learner's construction (a bad configuration or a non-finite bare cost).
 pub fn learn<const P: usize, O: Optimizer<P>>(
     plant: &mut impl Plant<P>,
