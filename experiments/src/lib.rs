@@ -3,6 +3,7 @@
 //! use the library, and the findings live in `findings/`. CI builds this crate and runs its
 //! release-only claims (`cargo test --release -p experiments`).
 
+pub mod auv_guard;
 pub mod hopping;
 pub mod model_learner;
 pub mod overhead;

@@ -104,10 +104,16 @@ pub struct Settings<const P: usize> {
     pub margin: f32,
     /// Exploration episodes after the bare one.
     pub explorations: usize,
-    /// Their half-widths: u uniform in ±`explore` per coordinate.
+    /// Their half-widths: u uniform in ±`explore` per coordinate (0: the bare θ, an episode
+    /// that only feeds the plant's model, see [`learn`]).
     pub explore: Vector<P>,
     /// The initial prediction error.
     pub initial_error: InitialError,
+    /// Restart the trust region after this many consecutive proposals that did not improve
+    /// the best real θ while its radius was at `config.min_radius` (the learner is rebuilt
+    /// around the best real θ with the initial radius, its fallback as it was; TuRBO's
+    /// restart of a collapsed trust region, Eriksson et al. 2019); `None`: never.
+    pub restart: Option<usize>,
 }
 
 impl<const P: usize> Settings<P> {
@@ -124,6 +130,7 @@ impl<const P: usize> Settings<P> {
             explorations: 3,
             explore: Vector::repeat(0.05),
             initial_error: InitialError::Fixed(0.0),
+            restart: None,
         }
     }
 }
@@ -168,12 +175,13 @@ fn uniform<const P: usize>(rng: &mut impl RngCore, half_width: &Vector<P>) -> Ve
 /// The learner on `plant` for at most `budget` real episodes (fewer if the fallback is
 /// spent while the model's candidate does not pass): the bare controller (u = 0), the
 /// exploration draws (each predicted before it runs), then `ModelBased` with `fallback`
-/// and the inner optimizer `inner` builds, its threshold the bare cost plus the margin.
+/// and the inner optimizer `inner` builds, its threshold the bare cost plus the margin,
+/// rebuilt around its best real u when its trust region has stalled ([`Settings::restart`]).
 /// Errors: the learner's construction (a bad configuration or a non-finite bare cost).
 pub fn learn<const P: usize, O: Optimizer<P>>(
     plant: &mut impl Plant<P>,
     bounds: Bounds<P>,
-    fallback: impl Optimizer<P>,
+    fallback: impl Optimizer<P> + Clone,
     mut inner: impl FnMut(Bounds<P>, Vector<P>) -> Result<O, Error>,
     settings: &Settings<P>,
     budget: usize,
@@ -215,7 +223,12 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         learner_time: Duration::ZERO,
     };
     for (u, e, predicted) in explored {
-        learner.record(u, e.cost.min(f32::MAX))?;
+        // An exploration of u = 0 (half-widths 0) is the bare θ again, a plant's
+        // identification episode (`auv_guard::GuardedAuv` dithers its commands): the bare
+        // episode's cost stands for u = 0, so it only feeds the model.
+        if u.iter().any(|v| *v != 0.0) {
+            learner.record(u, e.cost.min(f32::MAX))?;
+        }
         run.costs.push(e.cost);
         run.origin.push(Origin::Explore);
         run.flagged.push(e.flagged);
@@ -223,7 +236,17 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         run.uncertainty.push(None);
         run.errors.push(learner.prediction_error());
     }
+    let mut stalled = 0;
     while run.costs.len() < budget {
+        if settings.restart.is_some_and(|r| stalled >= r) {
+            let best = learner.best().ok_or(Error::InvalidParameter("best"))?;
+            learner = ModelBased::try_new(bounds, learner.fallback().clone(), config)?;
+            learner.set_reference(bare.cost)?;
+            learner.record(best.theta, best.cost)?;
+            stalled = 0;
+        }
+        let at_min = learner.radius() <= config.min_radius;
+        let best_before = learner.best().map(|b| b.cost);
         let error = learner.prediction_error();
         let t0 = Instant::now();
         let proposal =
@@ -250,6 +273,8 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         if told.is_err() {
             break;
         }
+        let improved = learner.best().map(|b| b.cost) != best_before;
+        stalled = if at_min && !improved { stalled + 1 } else { 0 };
     }
     run.best = learner.best().map(|b| to_vec(&b.theta));
     Ok(run)
@@ -885,6 +910,74 @@ mod tests {
                 assert!(run.predicted.iter().all(Option::is_none));
             }
         }
+    }
+
+    /// A plant whose model is wrong about the optimum's side: real cost |u − 0.3|² + 1 per
+    /// coordinate, predicted |u + 0.5|², so that every model step from u = 0 goes the wrong
+    /// way; it records every u it runs.
+    struct Misled {
+        runs: Vec<Vector<2>>,
+    }
+
+    impl Plant<2> for Misled {
+        fn episode(&mut self, u: &Vector<2>) -> Real {
+            self.runs.push(*u);
+            Real {
+                cost: (u - Vector::repeat(0.3)).norm_squared() + 1.0,
+                flagged: false,
+            }
+        }
+
+        fn predict(&self, u: &Vector<2>) -> Result<f32, Error> {
+            Ok((u + Vector::repeat(0.5)).norm_squared())
+        }
+    }
+
+    /// The restart of a collapsed trust region (seed 7, 30 episodes, no explorations): the
+    /// misled model's steps never improve on u = 0, so the radius shrinks to its minimum
+    /// 0.05 and, without a restart, every later step stays within it; with a restart after
+    /// 3 stalled steps the radius is back at 0.15 and later steps go beyond 0.1 again.
+    #[test]
+    fn a_collapsed_trust_region_restarts() {
+        let widest_late_step = |restart: Option<usize>| {
+            let mut plant = Misled { runs: Vec::new() };
+            let fallback = CoordinateSearch::try_new(
+                unit_box(),
+                Vector::zeros(),
+                CoordinateConfig {
+                    initial_step: 0.1,
+                    max_evaluations: 30,
+                    ..CoordinateConfig::DEFAULT
+                },
+            )
+            .unwrap();
+            let settings = Settings {
+                explorations: 0,
+                restart,
+                ..Settings::chosen(50)
+            };
+            let mut rng = Xoshiro128PlusPlus::seed_from_u64(7);
+            let run = learn(
+                &mut plant,
+                unit_box(),
+                fallback,
+                inner_cmaes::<2, 6>(50),
+                &settings,
+                30,
+                &mut rng,
+            )
+            .unwrap();
+            assert_eq!(run.costs.len(), 30);
+            // The best stays the bare u = 0: no step improves on it.
+            assert_eq!(run.best, Some(vec![0.0, 0.0]));
+            assert!(run.origin[1..].iter().all(|o| *o == Origin::Model));
+            plant.runs[10..]
+                .iter()
+                .map(|u| u.amax())
+                .fold(0.0f32, f32::max)
+        };
+        assert!(widest_late_step(None) <= 0.05);
+        assert!(widest_late_step(Some(3)) > 0.1);
     }
 
     /// The oracle's `model` method on the AUV (seed 1, 6 episodes): its first episode is

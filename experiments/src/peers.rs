@@ -329,6 +329,15 @@ impl Trial {
         self.conditions
     }
 
+    /// The AUV tasks' plant as it is before the next episode (its disturbances continue from
+    /// episode to episode); `None` on the other tasks.
+    pub fn auv(&self) -> Option<&Auv> {
+        match &self.episodes {
+            Episodes::Auv(auv) => Some(auv),
+            _ => None,
+        }
+    }
+
     /// The box's lower corner.
     pub fn lower(&self) -> &[f32] {
         &self.lower

@@ -26,13 +26,14 @@ use std::cell::Cell;
 use ctrl_adapt::controller::guard::{Guard, GuardConfig, Limit, Source, Supervisor};
 use ctrl_adapt::controller::{Adapter, Mode};
 use ctrl_adapt::cost::SurveyCost;
-use ctrl_adapt::model::{
-    AffineWith, ModelConfig, OnlineModel, RlsModel, TickModel, imagine_handover,
-};
+use ctrl_adapt::model::TickModel;
 use ctrl_adapt::optimizer::{
     CemConfig, Cmaes, CmaesConfig, DiagonalCem, Optimizer, Vector, Weighting,
 };
-use experiments::model_learner::{AUV_R, AuvMap, bounded_drag};
+use experiments::auv_guard::{
+    CHOSEN, FAR, FAR_LIMIT, GuardSetting as Setting, PREDICTIVE, TICKS, forecast_model,
+    guard_config, predictive_guard,
+};
 use host_tests::auv::{Auv, AuvConfig};
 use host_tests::auv_task::{self, AuvController, P, RADIUS};
 use rand_core::SeedableRng;
@@ -40,25 +41,7 @@ use rand_xoshiro::Xoshiro128PlusPlus;
 
 const BUDGET: u32 = 150;
 const BARE_EPISODES: usize = 3;
-/// Envelope ticks: the 24 s episode at 10 Hz.
-const TICKS: usize = 240;
-/// The distance limit (m).
-const FAR: f32 = 8.0;
 const UNSAFE_RATIO: f32 = 1.2;
-
-#[derive(Debug, Clone, Copy)]
-struct Setting {
-    relative_margin: f32,
-    absolute_margin: f32,
-    envelope_ticks: u32,
-    /// `GuardConfig::margin_taper` (1: constant margins).
-    margin_taper: f32,
-    /// The predictive trip: a second limit on the forecast of the episode's cost, as a
-    /// multiple of the model's forecast of the bare episode, and the ticks the candidate
-    /// keeps running in a forecast before the hand-over (see [`forecast`]); `None`: no
-    /// forecast.
-    forecast: Option<(f32, usize)>,
-}
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Outcome {
@@ -95,25 +78,9 @@ fn run<O: Optimizer<P>>(
     let Some(s) = guard else {
         return learn(adapter, &mut auv, &mut rng, no_signal);
     };
-    let far = Limit {
-        source: Source::Signal(0),
-        low: 0.0,
-        high: FAR,
-    };
-    fn config<const L: usize>(s: &Setting, limits: [Limit; L]) -> GuardConfig<L> {
-        GuardConfig {
-            limits,
-            limit_ticks: 2,
-            envelope_ticks: s.envelope_ticks,
-            relative_margin: s.relative_margin,
-            absolute_margin: s.absolute_margin,
-            margin_taper: s.margin_taper,
-            tripped_cost_span: 5.0,
-        }
-    }
     match s.forecast {
         None => {
-            let guard = Guard::<1, TICKS>::try_new(config(&s, [far])).unwrap();
+            let guard = Guard::<1, TICKS>::try_new(guard_config(&s, [FAR_LIMIT])).unwrap();
             learn(
                 adapter.with_guard(guard).unwrap(),
                 &mut auv,
@@ -122,85 +89,32 @@ fn run<O: Optimizer<P>>(
             )
         }
         Some((ratio, lookahead)) => {
-            let forecast_limit = Limit {
-                source: Source::Signal(1),
-                low: f32::NEG_INFINITY,
-                high: ratio,
-            };
-            let guard = Guard::<2, TICKS>::try_new(config(&s, [far, forecast_limit])).unwrap();
-            let model = OnlineModel::new(
-                RlsModel::try_new(ModelConfig::DEFAULT).unwrap(),
-                AffineWith::new(bounded_drag as fn(&Vector<6>, &Vector<3>) -> Vector<4>),
-            );
             let adapter = adapter
-                .with_guard(guard)
+                .with_guard(predictive_guard(&s, ratio).unwrap())
                 .unwrap()
-                .with_model(model)
+                .with_model(forecast_model())
                 .unwrap();
             let reference = Cell::new(f32::NAN);
             learn(adapter, &mut auv, &mut rng, |a, x, k, _| {
-                forecast(a, x, k, ratio, lookahead, &reference)
+                // The forecast of the pending candidate (`auv_guard::forecast`).
+                let Some(theta) = a.optimizer().pending().copied() else {
+                    return 0.0;
+                };
+                experiments::auv_guard::forecast(
+                    a.model(),
+                    a.controller(),
+                    a.shaper(),
+                    &theta,
+                    x,
+                    k,
+                    (ratio, lookahead),
+                    &reference,
+                )
             })
         }
     }
 }
 
-/// The plant model the adapter feeds: the bounded-drag regressors of `findings/model.md`.
-type Model = OnlineModel<AuvMap, 6, 3, AUV_R>;
-
-/// The predictive trip's signal at `tick` (before this tick's control), as a multiple of the
-/// bare cost: the survey cost the episode would end with if the candidate ran `LOOKAHEAD`
-/// more ticks and the bare PD the rest, forecast on the plant model fitted to every tick so
-/// far (the adapter's own controller and shaper, copied, continued from where the episode
-/// is). A safety filter with the nominal controller as its backup (Brunke et al. 2022,
-/// "predictive safety filters"): trip as soon as the backup, started `LOOKAHEAD` ticks from
-/// now, is forecast to end above the limit (`ratio` × the bare cost) — unless the candidate
-/// itself, run to the end, is forecast to end lower than that backup (then a hand-over
-/// could only make the episode worse, e.g. where the bare PD's own spread reaches the
-/// limit): the signal then reads 0. A forecast that leaves the finite numbers reads +∞.
-fn forecast<O: Optimizer<P>, G: Supervisor<6>>(
-    adapter: &Adapter<O, AuvController, SurveyCost, P, 6, 3, G, Model>,
-    state: &Vector<6>,
-    tick: usize,
-    ratio: f32,
-    lookahead: usize,
-    reference: &Cell<f32>,
-) -> f32 {
-    let Some(theta) = adapter.optimizer().pending().copied() else {
-        return 0.0;
-    };
-    // The episode's end if the candidate runs `candidate_ticks` more ticks, then the PD.
-    let end = |candidate_ticks: usize| {
-        let online = adapter.model();
-        imagine_handover(
-            online.model(),
-            online.map(),
-            state,
-            tick as u32,
-            TICKS as u32,
-            DT,
-            *adapter.controller(),
-            &theta,
-            candidate_ticks as u32,
-            *adapter.shaper(),
-            |x| Vector::<3>::new(x[0], x[1], x[2]),
-        )
-        .unwrap_or(f32::INFINITY)
-    };
-    if tick == 0 {
-        reference.set(end(0));
-    }
-    let backup = end(lookahead) / reference.get();
-    if backup > ratio && end(TICKS) / reference.get() < backup {
-        0.0
-    } else {
-        backup
-    }
-}
-
-const DT: f32 = 0.1;
-
-/// The loop, generic over the guard: bare episodes, then learning.
 /// The loop, generic over the guard and the model: bare episodes, then learning. `signal(adapter,
 /// state, tick, bare cost)` is the guard's second safety signal (the forecast), computed in
 /// learning episodes only.
@@ -380,22 +294,6 @@ fn print(rows: &[(String, Totals, Totals)]) {
         );
     }
 }
-
-/// The setting reported (chosen by `tune_taper` on seeds 101–110; `tune` chose the margins
-/// 0.5 / 0.5 with constant margins before the taper existed).
-const CHOSEN: Setting = Setting {
-    relative_margin: 1.0,
-    absolute_margin: 1.0,
-    envelope_ticks: 2,
-    margin_taper: 0.1,
-    forecast: None,
-};
-
-/// The predictive trip on top of [`CHOSEN`], chosen by `tune_forecast` on seeds 101–110.
-const PREDICTIVE: Setting = Setting {
-    forecast: Some((1.05, 6)),
-    ..CHOSEN
-};
 
 /// The constant-margin setting `tune` chose, reported beside it.
 const CONSTANT: Setting = Setting {
