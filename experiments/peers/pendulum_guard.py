@@ -33,8 +33,17 @@ tripped** (unguarded: would have tripped), **episodes to success** (the first le
 episode, counted from 1, that did not trip, did not fall and cost at most 0.25 × the bare
 cost) and whether it succeeded within the budget.
 
+The predictive trip (settings with ``forecast_angle``/``forecast_cart``): a plant model
+``ctrl_adapt.RlsModel(4, 1)`` fitted on every tick of the run (bare episodes included; not on
+ticks that end within 5 cm of the rail's stops or beyond the fall angle, which no linear
+model holds) forecasts, every ``every`` ticks from the measured state, ``every`` ticks of the
+candidate then ``horizon`` ticks of the nominal controller alone (``RlsModel.rollout``); the
+forecast's largest |angle| and |x| are the guard's signal (``Limit.signal(0)``, ``(1)``).
+
     python experiments/peers/pendulum_guard.py tune     # seeds 101–110, the settings' grid
     python experiments/peers/pendulum_guard.py report   # seeds 1–10, the chosen setting
+    python experiments/peers/pendulum_guard.py tune --grid 2 --arm on --save on.jsonl  # one setting, one arm
+    python experiments/peers/pendulum_guard.py tune --grid 2 --arm none --load on.jsonl,off.jsonl  # tables
 """
 
 import argparse
