@@ -68,7 +68,9 @@ except ImportError:
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 ORACLE = os.path.join(ROOT, "target", "release", "oracle")
 LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar", "linebo", "linebo-safe", "model"]
-PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt", "safeopt", "bayes-opt", "botorch"]
+PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt", "safeopt", "bayes-opt"]
+# Peers run on request only: BoTorch needs torch (requirements-botorch.txt).
+ON_REQUEST = ["botorch"]
 # The library through its Python package (`ctrl_adapt`, python/README.md), episodes from the
 # oracle like a peer's. `py-cmaes` has the oracle's `cmaes` sizes and settings (Cmaes<n, λ>,
 # σ₀ the task's step), so its rows equal that row's; `py-crs` and `py-rockstar` have the
@@ -503,7 +505,7 @@ def seeds(text):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--tasks", default="auv,hopper,arm")
-    p.add_argument("--methods", default=",".join(LIBRARY + PEERS))  # BINDING: on request
+    p.add_argument("--methods", default=",".join(LIBRARY + PEERS))  # BINDING, ON_REQUEST too
     p.add_argument("--seeds", default="1-10", help="e.g. 1-20 or 1,2,5")
     p.add_argument("--budget", type=int, default=0, help="episodes (default: the task's)")
     p.add_argument("--jobs", type=int, default=2)
@@ -528,7 +530,7 @@ def main():
                 runs.setdefault((r["task"], r["method"], r["seed"]), r)
         results = list(runs.values())
         tasks = list(dict.fromkeys(r["task"] for r in results))
-        known = LIBRARY + BINDING + PEERS
+        known = LIBRARY + BINDING + PEERS + ON_REQUEST
         methods = [m for m in known if any(r["method"] == m for r in results)]
         print(table(results, tasks, methods))
         if a.paired:
