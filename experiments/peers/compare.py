@@ -506,7 +506,9 @@ def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--tasks", default="auv,hopper,arm")
     p.add_argument("--methods", default=",".join(LIBRARY + PEERS))  # BINDING, ON_REQUEST too
-    p.add_argument("--seeds", default="1-10", help="e.g. 1-20 or 1,2,5")
+    p.add_argument(
+        "--seeds", help="e.g. 1-20 or 1,2,5 (default 1-10; with --table: every saved seed)"
+    )
     p.add_argument("--budget", type=int, default=0, help="episodes (default: the task's)")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--json", help="write every run's result here")
@@ -514,7 +516,7 @@ def main():
         "--table",
         nargs="+",
         metavar="JSON",
-        help="print the table of earlier runs' --json files (merged; no run)",
+        help="print the table of earlier runs' --json files (merged, of --seeds; no run)",
     )
     p.add_argument(
         "--paired",
@@ -527,7 +529,8 @@ def main():
         runs = {}
         for name in a.table:
             for r in json.load(open(name)):
-                runs.setdefault((r["task"], r["method"], r["seed"]), r)
+                if a.seeds is None or r["seed"] in seeds(a.seeds):
+                    runs.setdefault((r["task"], r["method"], r["seed"]), r)
         results = list(runs.values())
         tasks = list(dict.fromkeys(r["task"] for r in results))
         known = LIBRARY + BINDING + PEERS + ON_REQUEST
@@ -540,7 +543,8 @@ def main():
     if not os.path.exists(ORACLE):
         sys.exit("build the oracle first: cargo build --release -p experiments --bin oracle")
     tasks, methods = a.tasks.split(","), a.methods.split(",")
-    jobs = [(t, m, s, a.budget) for t in tasks for m in methods for s in seeds(a.seeds)]
+    run_seeds = seeds(a.seeds or "1-10")
+    jobs = [(t, m, s, a.budget) for t in tasks for m in methods for s in run_seeds]
     with multiprocessing.Pool(a.jobs) as pool:
         results = []
         for r in pool.imap_unordered(one, jobs):
