@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Side by side: the library's optimizers and its model-based learner against pycma, ZOOpt,
-nevergrad, SafeOpt, bayesian-optimization and BoTorch on the robots' own tasks (AUV survey, also with
-the current turned by 45°, hopping leg, via-point arm), with the same budgets, seeds and
-episodes.
+nevergrad, SafeOpt, bayesian-optimization and BoTorch on the robots' own tasks (AUV survey,
+also with the current turned by 45°, hopping leg, via-point arm), with the same budgets, seeds
+and episodes.
 
 Every method scores θ through the `oracle` binary (experiments/src/bin/oracle.rs): the
 library's methods run inside it (`run`), the peers ask it for one episode at a time (`eval`).
@@ -38,8 +38,9 @@ The library's rows run without the peers installed (plain `python3`, no numpy). 
 (`botorch`: GP-BO, `run_botorch`) pulls torch, several GB: it has a requirements file of its
 own, on top of the others', and the other rows run without it:
 
-    python3 -m venv .venv-botorch && .venv-botorch/bin/pip install -r experiments/peers/requirements-botorch.txt
-    nice -n 19 .venv-botorch/bin/python experiments/peers/compare.py --tasks auv --methods botorch --budget 40
+    python3 -m venv .venv-botorch
+    .venv-botorch/bin/pip install -r experiments/peers/requirements-botorch.txt
+    .venv-botorch/bin/python experiments/peers/compare.py --tasks auv --methods botorch --budget 30
 
 Outside `cargo test` and CI: the peers come from PyPI.
 """
