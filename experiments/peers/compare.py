@@ -35,8 +35,8 @@ the package installed in the same environment, `pip install ./python`):
     .venv-peers/bin/python experiments/peers/compare.py --tasks auv --methods cmaes,py-cmaes
 
 The library's rows run without the peers installed (plain `python3`, no numpy). BoTorch
-(`botorch`: GP-BO, `run_botorch`) pulls torch, several GB: it has a requirements file of its
-own, on top of the others', and the other rows run without it:
+(`botorch`: GP-BO, `run_botorch`) pulls torch, several GB: it has a venv and a requirements
+file of its own (numpy, scipy, BoTorch), and the other rows run without it:
 
     python3 -m venv .venv-botorch
     .venv-botorch/bin/pip install -r experiments/peers/requirements-botorch.txt
