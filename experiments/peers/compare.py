@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Side by side: the library's optimizers and its model-based learner against pycma, ZOOpt,
-nevergrad, SafeOpt and bayesian-optimization on the robots' own tasks (AUV survey, also with
-the current turned by 45°, hopping leg, via-point arm), with the same budgets, seeds and
-episodes.
+nevergrad, SafeOpt, bayesian-optimization and BoTorch on the robots' own tasks (AUV survey,
+also with the current turned by 45°, hopping leg, via-point arm), with the same budgets, seeds
+and episodes.
 
 Every method scores θ through the `oracle` binary (experiments/src/bin/oracle.rs): the
 library's methods run inside it (`run`), the peers ask it for one episode at a time (`eval`).
@@ -34,7 +34,13 @@ the package installed in the same environment, `pip install ./python`):
 
     .venv-peers/bin/python experiments/peers/compare.py --tasks auv --methods cmaes,py-cmaes
 
-The library's rows run without the peers installed (plain `python3`, no numpy).
+The library's rows run without the peers installed (plain `python3`, no numpy). BoTorch
+(`botorch`: GP-BO, `run_botorch`) pulls torch, several GB: it has a venv and a requirements
+file of its own (numpy, scipy, BoTorch), and the other rows run without it:
+
+    python3 -m venv .venv-botorch
+    .venv-botorch/bin/pip install -r experiments/peers/requirements-botorch.txt
+    .venv-botorch/bin/python experiments/peers/compare.py --tasks auv --methods botorch --budget 30
 
 Outside `cargo test` and CI: the peers come from PyPI.
 """
@@ -64,6 +70,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 ORACLE = os.path.join(ROOT, "target", "release", "oracle")
 LIBRARY = ["coordinate", "sracos", "crs", "cmaes", "rockstar", "linebo", "linebo-safe", "model"]
 PEERS = ["zoopt-sracos", "pycma", "ng-oneplusone", "ng-ngopt", "safeopt", "bayes-opt"]
+# Peers run on request only: BoTorch needs torch (requirements-botorch.txt).
+ON_REQUEST = ["botorch"]
 # The library through its Python package (`ctrl_adapt`, python/README.md), episodes from the
 # oracle like a peer's. `py-cmaes` has the oracle's `cmaes` sizes and settings (Cmaes<n, λ>,
 # σ₀ the task's step), so its rows equal that row's; `py-crs` and `py-rockstar` have the
@@ -191,6 +199,8 @@ def run_peer(method, oracle, budget, seed):
         returned = run_safeopt(f, oracle, x0, budget)
     elif method == "bayes-opt":
         returned = run_bayes_opt(f, x0, budget, seed)
+    elif method == "botorch":
+        returned = run_botorch(f, x0, budget, seed)
     else:
         raise ValueError(method)
     return f, oracle.box(returned)
@@ -308,6 +318,62 @@ def run_bayes_opt(f, x0, budget, seed):
     except Budget:
         pass
     return np.array([opt.max["params"][k] for k in keys])
+
+
+# BoTorch's acquisition optimiser: restarts and raw samples (modest: the host is shared).
+BOTORCH_RESTARTS, BOTORCH_RAW_SAMPLES = 4, 128
+
+
+def run_botorch(f, x0, budget, seed):
+    """GP-BO with BoTorch (imported here, so that the other rows run without torch): a
+    `SingleTaskGP` on the box normalised to [0, 1]^n with BoTorch's default kernel and
+    priors (an RBF kernel with a dimension-scaled log-normal prior on its length scales,
+    inferred noise), the outcomes standardised (`Standardize`), refitted by maximum
+    a-posteriori (`fit_gpytorch_mll`) after every episode; the next θ maximises
+    `qLogNoisyExpectedImprovement` (q = 1, the evaluated points as its baseline) by
+    `optimize_acqf` with `BOTORCH_RESTARTS` restarts from `BOTORCH_RAW_SAMPLES` raw samples.
+    The start θ is the first point and the only initial one (no space-filling design: the
+    other methods start from it too, and 2n random points would be 36 of the AUV's episodes).
+    It maximises the negated cost, clipped like `bayes-opt`'s; double precision, one torch
+    thread, the torch RNG seeded with `seed`. Returns its best evaluated θ."""
+    import torch
+    from botorch.acquisition.logei import qLogNoisyExpectedImprovement
+    from botorch.fit import fit_gpytorch_mll
+    from botorch.models import SingleTaskGP
+    from botorch.models.transforms.outcome import Standardize
+    from botorch.optim import optimize_acqf
+    from gpytorch.mlls import ExactMarginalLogLikelihood
+
+    torch.set_num_threads(1)
+    torch.manual_seed(seed)
+    n = len(x0)
+    unit = torch.stack([torch.zeros(n), torch.ones(n)]).double()
+    xs, ys = [], []
+    z = (torch.as_tensor(np.asarray(x0), dtype=torch.double) + 1.0) / 2.0
+    try:
+        while True:
+            c = f((z * 2.0 - 1.0).numpy())
+            xs.append(z)
+            ys.append(-min(c, CLIP * max(abs(f.costs[0]), 1.0)))
+            train_x = torch.stack(xs)
+            train_y = torch.tensor(ys, dtype=torch.double).unsqueeze(-1)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                gp = SingleTaskGP(train_x, train_y, outcome_transform=Standardize(m=1))
+                fit_gpytorch_mll(ExactMarginalLogLikelihood(gp.likelihood, gp))
+                acq = qLogNoisyExpectedImprovement(gp, X_baseline=train_x, prune_baseline=True)
+                candidate, _ = optimize_acqf(
+                    acq,
+                    bounds=unit,
+                    q=1,
+                    num_restarts=BOTORCH_RESTARTS,
+                    raw_samples=BOTORCH_RAW_SAMPLES,
+                )
+            z = candidate.detach()[0].clamp(0.0, 1.0)
+    except Budget:
+        pass
+    best = int(np.argmax(ys))
+    return (xs[best] * 2.0 - 1.0).numpy()
 
 
 def one(job):
@@ -440,8 +506,10 @@ def seeds(text):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--tasks", default="auv,hopper,arm")
-    p.add_argument("--methods", default=",".join(LIBRARY + PEERS))  # BINDING: on request
-    p.add_argument("--seeds", default="1-10", help="e.g. 1-20 or 1,2,5")
+    p.add_argument("--methods", default=",".join(LIBRARY + PEERS))  # BINDING, ON_REQUEST too
+    p.add_argument(
+        "--seeds", help="e.g. 1-20 or 1,2,5 (default 1-10; with --table: every saved seed)"
+    )
     p.add_argument("--budget", type=int, default=0, help="episodes (default: the task's)")
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--json", help="write every run's result here")
@@ -449,7 +517,7 @@ def main():
         "--table",
         nargs="+",
         metavar="JSON",
-        help="print the table of earlier runs' --json files (merged; no run)",
+        help="print the table of earlier runs' --json files (merged, of --seeds; no run)",
     )
     p.add_argument(
         "--paired",
@@ -462,10 +530,11 @@ def main():
         runs = {}
         for name in a.table:
             for r in json.load(open(name)):
-                runs.setdefault((r["task"], r["method"], r["seed"]), r)
+                if a.seeds is None or r["seed"] in seeds(a.seeds):
+                    runs.setdefault((r["task"], r["method"], r["seed"]), r)
         results = list(runs.values())
         tasks = list(dict.fromkeys(r["task"] for r in results))
-        known = LIBRARY + BINDING + PEERS
+        known = LIBRARY + BINDING + PEERS + ON_REQUEST
         methods = [m for m in known if any(r["method"] == m for r in results)]
         print(table(results, tasks, methods))
         if a.paired:
@@ -475,7 +544,8 @@ def main():
     if not os.path.exists(ORACLE):
         sys.exit("build the oracle first: cargo build --release -p experiments --bin oracle")
     tasks, methods = a.tasks.split(","), a.methods.split(",")
-    jobs = [(t, m, s, a.budget) for t in tasks for m in methods for s in seeds(a.seeds)]
+    run_seeds = seeds(a.seeds or "1-10")
+    jobs = [(t, m, s, a.budget) for t in tasks for m in methods for s in run_seeds]
     with multiprocessing.Pool(a.jobs) as pool:
         results = []
         for r in pool.imap_unordered(one, jobs):
