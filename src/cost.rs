@@ -112,7 +112,11 @@ impl Shaper for SurveyCost {
             self.skipped = self.skipped.saturating_add(1);
             return;
         }
-        self.min_distance = self.min_distance.min(d);
+        // `self.min_distance.min(d)` for a finite d (minNum keeps d on a tie), without the
+        // call of `fminf` that `f32::min` is on a Cortex-M4F.
+        if d <= self.min_distance || self.min_distance.is_nan() {
+            self.min_distance = d;
+        }
         if d < self.radius {
             self.time_within += dt;
         }

@@ -54,7 +54,7 @@ pub use learner::{ModelBased, ModelBasedConfig, Prediction, Proposal, Source};
 pub use online::{OnlineModel, TickModel, Unmodelled};
 pub use rls::{ModelConfig, RlsModel};
 
-use crate::vector::Vector;
+use crate::vector::{Vector, unrolled};
 
 /// The regressors z(x, u) ∈ R^R the model's increment is linear in.
 ///
@@ -121,27 +121,21 @@ where
         const { assert!(R == S + A + 1 + E, "AffineWith: R must be S + A + 1 + E") };
         let mut z: Vector<R> = affine(state, command);
         let extra = (self.extra)(state, command);
-        for (slot, value) in z.iter_mut().skip(S + A + 1).zip(extra.iter()) {
-            *slot = *value;
-        }
+        unrolled::<E>(|i| z[S + A + 1 + i] = extra[i]);
         z
     }
 }
 
 /// [x, u, 1, 0, …] in R^R (R ≥ S + A + 1).
+#[inline]
 fn affine<const S: usize, const A: usize, const R: usize>(
     state: &Vector<S>,
     command: &Vector<A>,
 ) -> Vector<R> {
-    Vector::<R>::from_fn(|i, _| {
-        if i < S {
-            state[i]
-        } else if i < S + A {
-            command[i - S]
-        } else if i == S + A {
-            1.0
-        } else {
-            0.0
-        }
-    })
+    // Straight-line copies (see `unrolled`): the model builds z on every imagined tick.
+    let mut z = Vector::<R>::zeros();
+    unrolled::<S>(|i| z[i] = state[i]);
+    unrolled::<A>(|i| z[S + i] = command[i]);
+    z[S + A] = 1.0;
+    z
 }

@@ -48,6 +48,60 @@ pub(crate) fn times_into<const N: usize>(m: &SMatrix<f32, N, N>, v: &Vector<N>, 
     }
 }
 
+/// Σᵢ term(i) over i in 0..N, added in the order of nalgebra's `dot` (and so of `tr_mul`,
+/// whose entries are such dots), as straight-line code when N ≤ 32: the results are those
+/// of nalgebra bit for bit, where nalgebra's loops stay rolled at opt-level "s" (the plant
+/// model's prediction, 6 dots of 14 terms per imagined tick, cost about 670 instructions
+/// there as nalgebra's loops).
+///
+/// nalgebra sums two, three and four terms directly (((t₀ + t₁) + t₂) for three, (t₀ + t₂)
+/// + (t₁ + t₃) for four); beyond, term i of the first ⌊N/8⌋·8 goes to accumulator i mod 8,
+/// the accumulators are added in pairs (0 + 4, 1 + 5, 2 + 6, 3 + 7) onto a sum that starts
+/// at +0.0, and the remaining terms follow one by one. nalgebra starts its accumulators at
+/// +0.0 too; here they start at −0.0, the neutral element of `+`, so that the first addition
+/// folds away: the two differ only in the sign of a zero accumulator, which the sum's +0.0
+/// start absorbs (+0.0 + ±0.0 = +0.0, and a sum that started at +0.0 is never −0.0 again
+/// under rounding to nearest).
+#[inline(always)]
+pub(crate) fn dot<const N: usize>(mut term: impl FnMut(usize) -> f32) -> f32 {
+    match N {
+        2 => term(0) + term(1),
+        3 => term(0) + term(1) + term(2),
+        4 => {
+            let (t0, t1, t2, t3) = (term(0), term(1), term(2), term(3));
+            (t0 + t2) + (t1 + t3)
+        }
+        _ => {
+            let blocks = N / 8 * 8;
+            let mut acc = [-0.0f32; 8];
+            unrolled::<N>(|i| {
+                if i < blocks {
+                    acc[i % 8] += term(i);
+                }
+            });
+            let mut sum = 0.0 + (acc[0] + acc[4]);
+            sum += acc[1] + acc[5];
+            sum += acc[2] + acc[6];
+            sum += acc[3] + acc[7];
+            unrolled::<N>(|i| {
+                if i >= blocks {
+                    sum += term(i);
+                }
+            });
+            sum
+        }
+    }
+}
+
+/// Whether every entry of `v` is finite, as straight-line code when N ≤ 32 (see
+/// [`unrolled`]; `v.iter().all(..)` stays a loop at opt-level "s").
+#[inline(always)]
+pub(crate) fn all_finite<const N: usize>(v: &Vector<N>) -> bool {
+    let mut finite = true;
+    unrolled::<N>(|i| finite &= v[i].is_finite());
+    finite
+}
+
 /// Calls `body(i)` for every i in 0..N, in order, as straight-line code when N ≤ 32.
 ///
 /// Firmware ships at opt-level "s", where LLVM keeps short loops rolled: the policy

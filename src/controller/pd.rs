@@ -19,7 +19,7 @@
 
 use super::clamp;
 use crate::error::{Error, require};
-use crate::vector::Vector;
+use crate::vector::{Vector, unrolled};
 
 /// Which signal [`Pd::update`] differentiates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -111,14 +111,22 @@ impl<const A: usize> Pd<A> {
     }
 
     /// k_p ∘ e + k_d ∘ ė before saturation.
+    #[inline]
     pub fn raw(&self, error: &Vector<A>, error_rate: &Vector<A>) -> Vector<A> {
-        self.kp.component_mul(error) + self.kd.component_mul(error_rate)
+        // `kp.component_mul(error) + kd.component_mul(error_rate)`, unrolled (see
+        // `unrolled`): the PD runs on every control tick and every imagined one.
+        let mut u = Vector::<A>::zeros();
+        unrolled::<A>(|i| u[i] = self.kp[i] * error[i] + self.kd[i] * error_rate[i]);
+        u
     }
 
     /// `u` clamped to the output limits (NaN stays NaN, for the caller to detect).
+    #[inline]
     pub fn saturate(&self, u: &Vector<A>) -> Vector<A> {
         // `f32::clamp` without its panic path (see `controller::clamp`).
-        u.zip_map(&self.limit, |v, l| clamp(v, -l, l))
+        let mut saturated = *u;
+        unrolled::<A>(|i| saturated[i] = clamp(u[i], -self.limit[i], self.limit[i]));
+        saturated
     }
 
     /// u = sat(k_p ∘ e + k_d ∘ ė). Stateless.

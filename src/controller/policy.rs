@@ -347,10 +347,14 @@ where
         &self.policy
     }
 
+    /// k_p ∘ e + k_d ∘ ė with e the state's first A entries and ė = −(its last A).
+    #[inline]
     fn unsaturated(&self, state: &Vector<S>) -> Vector<A> {
-        let error = Vector::<A>::from_fn(|i, _| state[i]);
-        let rate = Vector::<A>::from_fn(|i, _| -state[A + i]);
-        self.pd.raw(&error, &rate)
+        // `pd.raw` of the two halves, without assembling them first.
+        let (kp, kd) = (self.pd.kp(), self.pd.kd());
+        let mut u = Vector::<A>::zeros();
+        unrolled::<A>(|i| u[i] = kp[i] * state[i] + kd[i] * -state[A + i]);
+        u
     }
 }
 
@@ -371,14 +375,17 @@ impl<const A: usize, const S: usize, const F: usize, const P: usize, M> Controll
 where
     M: FeatureMap<S, F>,
 {
+    #[inline]
     fn nominal(&mut self, state: &Vector<S>, _time: f32) -> Vector<A> {
         self.pd.saturate(&self.unsaturated(state))
     }
 
+    #[inline]
     fn corrected(&mut self, theta: &Vector<P>, state: &Vector<S>, time: f32) -> Vector<A> {
         let c = self.policy.correction(theta, state, time);
-        let nominal = self.nominal(state, time);
-        self.pd.saturate(&(nominal + c))
+        let mut u = self.nominal(state, time);
+        unrolled::<A>(|i| u[i] += c[i]);
+        self.pd.saturate(&u)
     }
 }
 

@@ -18,7 +18,7 @@ use super::{Regressors, RlsModel};
 use crate::controller::Controller;
 use crate::cost::Shaper;
 use crate::error::Error;
-use crate::vector::Vector;
+use crate::vector::{Vector, all_finite};
 
 /// Rolls the model forward `ticks` ticks from `start`: each tick `step(k, &state)` returns
 /// the command, and the model predicts the next state. Returns the final state.
@@ -68,7 +68,7 @@ fn roll<
     ticks: u32,
     mut step: impl FnMut(u32, &Vector<S>) -> Vector<A>,
 ) -> Result<(Vector<S>, f32), Error> {
-    if start.iter().any(|v| !v.is_finite()) {
+    if !all_finite(start) {
         return Err(Error::NonFinite("start"));
     }
     let mut state = *start;
@@ -82,7 +82,7 @@ fn roll<
         } else {
             model.predict(map, &state, &command)
         };
-        if state.iter().any(|v| !v.is_finite()) {
+        if !all_finite(&state) {
             return Err(Error::NonFinite("prediction"));
         }
     }
@@ -313,9 +313,9 @@ fn continue_episode<
             } else {
                 controller.nominal(state, time)
             };
-            if command.iter().any(|v| !v.is_finite()) {
+            if !all_finite(&command) {
                 command = controller.nominal(state, time);
-                if command.iter().any(|v| !v.is_finite()) {
+                if !all_finite(&command) {
                     command = controller.safe_action();
                 }
             }

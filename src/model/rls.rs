@@ -30,7 +30,7 @@ use nalgebra::SMatrix;
 
 use super::Regressors;
 use crate::error::{Error, require, require_finite};
-use crate::vector::Vector;
+use crate::vector::{Vector, dot, unrolled};
 
 /// The constants of an [`RlsModel`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -190,7 +190,26 @@ impl<const S: usize, const A: usize, const R: usize> RlsModel<S, A, R> {
         command: &Vector<A>,
     ) -> Vector<S> {
         let z = map.regressors(state, command);
-        state + self.weights.tr_mul(&z)
+        self.advance(state, &z)
+    }
+
+    /// Wᵀz: the predicted increment for the regressors z, as nalgebra's `tr_mul` computes
+    /// it (the same dots in the same order, see [`dot`]) but unrolled: this runs on every
+    /// imagined tick, and firmware is built for size, where nalgebra's loops stay rolled.
+    #[inline(always)]
+    fn increment(&self, z: &Vector<R>) -> Vector<S> {
+        let mut increment = Vector::<S>::zeros();
+        unrolled::<S>(|j| increment[j] = dot::<R>(|i| self.weights[(i, j)] * z[i]));
+        increment
+    }
+
+    /// x + Wᵀz, component by component (`state + increment`).
+    #[inline(always)]
+    fn advance(&self, state: &Vector<S>, z: &Vector<R>) -> Vector<S> {
+        let increment = self.increment(z);
+        let mut next = *state;
+        unrolled::<S>(|j| next[j] += increment[j]);
+        next
     }
 
     /// The predicted next state and the leverage zᵀPz of its regressors, from one
@@ -203,7 +222,7 @@ impl<const S: usize, const A: usize, const R: usize> RlsModel<S, A, R> {
         command: &Vector<A>,
     ) -> (Vector<S>, f32) {
         let z = map.regressors(state, command);
-        (state + self.weights.tr_mul(&z), self.quadratic_form(&z))
+        (self.advance(state, &z), self.quadratic_form(&z))
     }
 
     /// The leverage zᵀPz of the regressors z(state, command): how far they lie from the
@@ -310,7 +329,7 @@ impl<const S: usize, const A: usize, const R: usize> RlsModel<S, A, R> {
         let increment = next - state;
         require_finite(increment.iter(), "next")?;
 
-        let error = increment - self.weights.tr_mul(&z);
+        let error = increment - self.increment(&z);
         require_finite(error.iter(), "next")?;
         let lambda = self.config.forgetting;
         let pz = self.covariance * z;
