@@ -58,10 +58,10 @@ pub(crate) fn times_into<const N: usize>(m: &SMatrix<f32, N, N>, v: &Vector<N>, 
 /// + (t₁ + t₃) for four); beyond, term i of the first ⌊N/8⌋·8 goes to accumulator i mod 8,
 /// the accumulators are added in pairs (0 + 4, 1 + 5, 2 + 6, 3 + 7) onto a sum that starts
 /// at +0.0, and the remaining terms follow one by one. nalgebra starts its accumulators at
-/// +0.0 too; here they start at −0.0, the neutral element of `+`, so that the first addition
-/// folds away: the two differ only in the sign of a zero accumulator, which the sum's +0.0
-/// start absorbs (+0.0 + ±0.0 = +0.0, and a sum that started at +0.0 is never −0.0 again
-/// under rounding to nearest).
+/// +0.0 and adds the first block's terms to them; here the first block's terms are the
+/// accumulators, without that addition. The two differ only in the sign of a zero
+/// accumulator, which the sum's +0.0 start absorbs (+0.0 + ±0.0 = +0.0, and a sum that
+/// started at +0.0 is never −0.0 again under rounding to nearest).
 #[inline(always)]
 pub(crate) fn dot<const N: usize>(mut term: impl FnMut(usize) -> f32) -> f32 {
     match N {
@@ -73,9 +73,11 @@ pub(crate) fn dot<const N: usize>(mut term: impl FnMut(usize) -> f32) -> f32 {
         }
         _ => {
             let blocks = N / 8 * 8;
-            let mut acc = [-0.0f32; 8];
+            let mut acc = [0.0f32; 8];
             unrolled::<N>(|i| {
-                if i < blocks {
+                if i < 8.min(blocks) {
+                    acc[i] = term(i);
+                } else if i < blocks {
                     acc[i % 8] += term(i);
                 }
             });
