@@ -122,3 +122,113 @@ pub(crate) fn unrolled<const N: usize>(mut body: impl FnMut(usize)) {
         (0..N).for_each(body);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Entries of one scale, where the order of the additions shows in the rounding, and
+    /// now and then a signed zero, an infinity or NaN.
+    fn entry() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            20 => -1f32..1.0,
+            1 => Just(0.0f32),
+            1 => Just(-0.0f32),
+            1 => Just(f32::INFINITY),
+            1 => Just(f32::NAN),
+            1 => proptest::num::f32::NORMAL,
+        ]
+    }
+
+    /// `dot::<N>` of the first N entries of `a` and `b` against nalgebra's `dot`.
+    fn check<const N: usize>(a: &[f32; 40], b: &[f32; 40]) -> Result<(), TestCaseError> {
+        let x = Vector::<N>::from_fn(|i, _| a[i]);
+        let y = Vector::<N>::from_fn(|i, _| b[i]);
+        let expected = x.dot(&y);
+        let got = dot::<N>(|i| x[i] * y[i]);
+        // Bit for bit (zeros' signs included); a NaN is any NaN.
+        prop_assert!(
+            got.to_bits() == expected.to_bits() || (got.is_nan() && expected.is_nan()),
+            "N = {}: {:?} against nalgebra's {:?}",
+            N,
+            got,
+            expected
+        );
+        Ok(())
+    }
+
+    proptest! {
+        /// Checks: `dot` equals nalgebra's `dot` bit for bit at every length that takes a
+        /// different path there (2, 3, 4 directly; below, at and between multiples of 8;
+        /// beyond the unrolled 32).
+        #[test]
+        fn dot_is_nalgebras_bit_for_bit(
+            a in prop::collection::vec(entry(), 40),
+            b in prop::collection::vec(entry(), 40),
+        ) {
+            let a: [f32; 40] = a.try_into().unwrap();
+            let b: [f32; 40] = b.try_into().unwrap();
+            check::<1>(&a, &b)?;
+            check::<2>(&a, &b)?;
+            check::<3>(&a, &b)?;
+            check::<4>(&a, &b)?;
+            check::<5>(&a, &b)?;
+            check::<7>(&a, &b)?;
+            check::<8>(&a, &b)?;
+            check::<9>(&a, &b)?;
+            check::<14>(&a, &b)?;
+            check::<16>(&a, &b)?;
+            check::<18>(&a, &b)?;
+            check::<32>(&a, &b)?;
+            check::<33>(&a, &b)?;
+            check::<40>(&a, &b)?;
+        }
+    }
+
+    #[test]
+    fn dot_of_zeros_has_nalgebras_sign() {
+        // Checks: products that are all −0.0, all +0.0, or −0.0 with one +0.0 at each place,
+        // sum to the zero nalgebra returns (its +0.0 start makes every such sum +0.0).
+        let a = [-0.0f32; 40];
+        let ones = [1.0f32; 40];
+        check_all(&a, &ones);
+        check_all(&[0.0; 40], &ones);
+        for k in 0..40 {
+            let mut b = [-1.0f32; 40];
+            b[k] = 1.0;
+            check_all(&[0.0; 40], &b);
+            let mut b = [1.0f32; 40];
+            b[k] = -1.0;
+            check_all(&a, &b);
+        }
+    }
+
+    fn check_all(a: &[f32; 40], b: &[f32; 40]) {
+        check::<1>(a, b).unwrap();
+        check::<2>(a, b).unwrap();
+        check::<3>(a, b).unwrap();
+        check::<4>(a, b).unwrap();
+        check::<5>(a, b).unwrap();
+        check::<8>(a, b).unwrap();
+        check::<14>(a, b).unwrap();
+        check::<16>(a, b).unwrap();
+        check::<18>(a, b).unwrap();
+        check::<33>(a, b).unwrap();
+    }
+
+    #[test]
+    fn all_finite_finds_any_non_finite_entry() {
+        // Checks: every position and kind of non-finite entry is found, signed zeros and
+        // f32::MAX are finite.
+        let finite = Vector::<7>::from([0.0, -0.0, f32::MAX, -f32::MAX, 1.0, 1e-40, -3.0]);
+        assert!(all_finite(&finite));
+        for i in 0..7 {
+            for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+                let mut v = finite;
+                v[i] = bad;
+                assert!(!all_finite(&v), "{bad} at {i}");
+            }
+        }
+    }
+}

@@ -682,6 +682,37 @@ mod tests {
             }
         }
 
+        /// Checks: the unrolled PD of `CorrectedPd` gives what nalgebra's vector operations
+        /// give, bit for bit: nominal = sat(k_p ∘ e + k_d ∘ (−v)), corrected = sat(nominal +
+        /// c), with gains and limits of their own per axis and signed zeros in the state.
+        #[test]
+        fn corrected_pd_is_the_vector_formula_bit_for_bit(
+            theta in prop::array::uniform18(-2f32..2.0),
+            state in prop::array::uniform6(prop_oneof![8 => -5f32..5.0, 1 => Just(0.0f32), 1 => Just(-0.0f32)]),
+        ) {
+            let (kp, kd, limit) = (
+                Vector::<3>::new(0.3, 1.7, -0.0),
+                Vector::<3>::new(0.1, 0.0, 2.3),
+                Vector::<3>::new(1.0, 0.5, f32::INFINITY),
+            );
+            let pd = Pd::<3>::try_new(kp, kd).unwrap().with_limit(limit).unwrap();
+            let policy = LinearPolicy::try_new(IdentityFeatures, Vector::repeat(0.4)).unwrap();
+            let mut controller: CorrectedPd<3, 6, 6, 18, _> = CorrectedPd::new(pd, policy);
+            let (theta, state) = (Vector::from(theta), Vector::from(state));
+            let error = Vector::<3>::new(state[0], state[1], state[2]);
+            let rate = -Vector::<3>::new(state[3], state[4], state[5]);
+            let sat = |u: Vector<3>| u.zip_map(&limit, |v, l| v.clamp(-l, l));
+            let nominal = sat(kp.component_mul(&error) + kd.component_mul(&rate));
+            let corrected = sat(nominal + controller.policy().correction(&theta, &state, 0.0));
+            prop_assert_eq!(controller.nominal(&state, 0.0).map(f32::to_bits), nominal.map(f32::to_bits));
+            prop_assert_eq!(
+                controller.corrected(&theta, &state, 0.0).map(f32::to_bits),
+                corrected.map(f32::to_bits)
+            );
+            prop_assert_eq!(pd.raw(&error, &rate).map(f32::to_bits),
+                (kp.component_mul(&error) + kd.component_mul(&rate)).map(f32::to_bits));
+        }
+
         /// Checks: for any θ (31 entries) and any time, the leg's corrections stay within
         /// their envelope and the torques within the limit.
         #[test]

@@ -783,5 +783,37 @@ mod tests {
             prop_assert!(dragged.validate().is_ok());
             prop_assert!(model.one_step_error().iter().all(|e| *e >= 0.0));
         }
+
+        /// Checks: the unrolled prediction is nalgebra's x + Wᵀz bit for bit (the AUV's
+        /// sizes, S = 6 and R = 14), for weights fitted on random ticks and random queries
+        /// with signed zeros; the a-priori error of a tick is the same as nalgebra's too.
+        #[test]
+        fn prediction_is_nalgebras_bit_for_bit(
+            ticks in proptest::collection::vec(proptest::array::uniform12(-2f32..2.0), 20..40),
+            query in proptest::array::uniform9(prop_oneof![8 => -2f32..2.0, 1 => Just(0.0f32), 1 => Just(-0.0f32)]),
+        ) {
+            let extra = |x: &Vector<6>, _: &Vector<3>| {
+                Vector::<5>::from_fn(|i, _| x[i].abs() * x[i])
+            };
+            let map = AffineWith::new(extra);
+            let mut model = RlsModel::<6, 3, 15>::try_new(ModelConfig::DEFAULT).unwrap();
+            for t in ticks.windows(2) {
+                let x = Vector::<6>::from_fn(|i, _| t[0][i]);
+                let u = Vector::<3>::from_fn(|i, _| t[0][6 + i]);
+                let next = Vector::<6>::from_fn(|i, _| t[1][i]);
+                let z = map.regressors(&x, &u);
+                let expected = next - x - model.weights().tr_mul(&z);
+                let error = model.update(&map, &x, &u, &next).unwrap();
+                prop_assert_eq!(error.map(f32::to_bits), expected.map(f32::to_bits));
+            }
+            let x = Vector::<6>::from_fn(|i, _| query[i]);
+            let u = Vector::<3>::from_fn(|i, _| query[6 + i]);
+            let z = map.regressors(&x, &u);
+            let expected = x + model.weights().tr_mul(&z);
+            let predicted = model.predict(&map, &x, &u);
+            prop_assert_eq!(predicted.map(f32::to_bits), expected.map(f32::to_bits));
+            let (with_leverage, _) = model.predict_with_leverage(&map, &x, &u);
+            prop_assert_eq!(with_leverage.map(f32::to_bits), expected.map(f32::to_bits));
+        }
     }
 }
