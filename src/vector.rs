@@ -50,18 +50,17 @@ pub(crate) fn times_into<const N: usize>(m: &SMatrix<f32, N, N>, v: &Vector<N>, 
 
 /// Σᵢ term(i) over i in 0..N, added in the order of nalgebra's `dot` (and so of `tr_mul`,
 /// whose entries are such dots), as straight-line code when N ≤ 32: the results are those
-/// of nalgebra bit for bit, where nalgebra's loops stay rolled at opt-level "s" (the plant
-/// model's prediction, 6 dots of 14 terms per imagined tick, cost about 670 instructions
-/// there as nalgebra's loops).
+/// of nalgebra bit for bit, where nalgebra's loops stay rolled at opt-level "s". The plant
+/// model's prediction is 6 such dots of 14 terms per imagined AUV tick.
 ///
-/// nalgebra sums two, three and four terms directly (((t₀ + t₁) + t₂) for three, (t₀ + t₂)
-/// + (t₁ + t₃) for four); beyond, term i of the first ⌊N/8⌋·8 goes to accumulator i mod 8,
-/// the accumulators are added in pairs (0 + 4, 1 + 5, 2 + 6, 3 + 7) onto a sum that starts
-/// at +0.0, and the remaining terms follow one by one. nalgebra starts its accumulators at
-/// +0.0 and adds the first block's terms to them; here the first block's terms are the
-/// accumulators, without that addition. The two differ only in the sign of a zero
-/// accumulator, which the sum's +0.0 start absorbs (+0.0 + ±0.0 = +0.0, and a sum that
-/// started at +0.0 is never −0.0 again under rounding to nearest).
+/// nalgebra sums two, three and four terms directly: ((t₀ + t₁) + t₂) for three,
+/// ((t₀ + t₂) + (t₁ + t₃)) for four. Beyond, term i of the first ⌊N/8⌋·8 goes to
+/// accumulator i mod 8, the accumulators are added in pairs (0 and 4, 1 and 5, 2 and 6,
+/// 3 and 7) onto a sum that starts at +0.0, and the remaining terms follow one by one.
+/// nalgebra starts its accumulators at +0.0 and adds the first block's terms to them; here
+/// the first block's terms are the accumulators, without that addition. The two differ only
+/// in the sign of a zero accumulator, which the sum's +0.0 start absorbs (+0.0 + ±0.0 =
+/// +0.0, and a sum that started at +0.0 is never −0.0 again under rounding to nearest).
 #[inline(always)]
 pub(crate) fn dot<const N: usize>(mut term: impl FnMut(usize) -> f32) -> f32 {
     match N {
