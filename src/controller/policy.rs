@@ -348,7 +348,6 @@ where
     }
 
     /// k_p ∘ e + k_d ∘ ė with e the state's first A entries and ė = −(its last A).
-    #[inline]
     fn unsaturated(&self, state: &Vector<S>) -> Vector<A> {
         // `pd.raw` of the two halves, without assembling them first.
         let (kp, kd) = (self.pd.kp(), self.pd.kd());
@@ -375,12 +374,10 @@ impl<const A: usize, const S: usize, const F: usize, const P: usize, M> Controll
 where
     M: FeatureMap<S, F>,
 {
-    #[inline]
     fn nominal(&mut self, state: &Vector<S>, _time: f32) -> Vector<A> {
         self.pd.saturate(&self.unsaturated(state))
     }
 
-    #[inline]
     fn corrected(&mut self, theta: &Vector<P>, state: &Vector<S>, time: f32) -> Vector<A> {
         let c = self.policy.correction(theta, state, time);
         let mut u = self.nominal(state, time);
