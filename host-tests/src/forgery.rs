@@ -405,9 +405,13 @@ fn model_based_step(
     }
 }
 
-/// Up to `steps` proposals of `learner` and their real episodes on [`sphere`], the model's
-/// predictions off by a shift and sometimes failing (see [`model_based_step`] for the
-/// checks). A proposal pending in the record is told first. Returns the steps run.
+/// Up to `steps` proposals of `learner` and their real episodes on a noisy shifted sphere
+/// (‖θ − 0.3‖² + U(0, 0.01)), the model's predictions off by a shift and sometimes failing
+/// or not finite, with an exploration episode of the caller's own now and then. Every
+/// proposal must be finite, in the box and the pending one; the trust radius within its
+/// configured range; the measured prediction error finite and ≥ 0; the best finite, in the
+/// box and never worse. A proposal pending in the record is told first. Returns the steps
+/// run.
 pub fn run_model_based(
     mut learner: ForgedModelBased,
     rng: &mut DriverRng,
@@ -464,10 +468,10 @@ fn plant_tick(x: &Vector<2>, rng: &mut impl RngCore) -> (Vector<2>, Vector<1>, V
     }
 }
 
-/// `ticks` ticks of the plant of [`plant_tick`] fitted by `model`, from a random state (the
-/// plant's state reset when it leaves [−10, 10]²): each fit must succeed or be refused as
-/// non-finite, and leave a valid state; a prediction from a finite tick must not panic.
-/// Returns the ticks run.
+/// `ticks` ticks of a damped linear plant with two states and one command fitted by
+/// `model` (one tick in 50 non-finite, one in 50 huge), from a random state (the plant's
+/// state reset when it leaves [−10, 10]²): each fit must succeed or be refused as
+/// non-finite, and leave a valid state; no prediction may panic. Returns the ticks run.
 pub fn run_rls_model(
     mut model: ForgedRlsModel,
     rng: &mut DriverRng,
