@@ -651,8 +651,9 @@ fn forged_any_optimizer() {
     forge("AnyOptimizer<2, 4, 2, 8>::Cem", s);
 }
 
-#[test]
-fn forged_adapter() {
+/// The adapter the forged-adapter tests save: the driver's PD and correction envelope, a
+/// quadratic cost, `optimizer` from θ = 0.
+fn forged_adapter_around<O: Optimizer<2>>(optimizer: O) -> ForgedAdapter<O> {
     let pd = Pd::<1>::try_new(Vector::repeat(3.0), Vector::repeat(0.7))
         .and_then(|pd| pd.with_limit(Vector::repeat(ACTION_LIMIT)))
         .unwrap();
@@ -664,16 +665,21 @@ fn forged_adapter() {
         max_faulty_ticks: 0,
         learning_episodes: 1_000,
     };
-    let cmaes = Cmaes::<2, 4>::try_new(unit_box(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
     let shaper = QuadraticCost::try_new(Vector::repeat(1.0)).unwrap();
-    let adapter: ForgedAdapter<Cmaes<2, 4>> = Adapter::try_new(
-        cmaes,
+    Adapter::try_new(
+        optimizer,
         CorrectedPd::new(pd, policy),
         shaper,
         config,
         Vector::zeros(),
     )
-    .unwrap();
+    .unwrap()
+}
+
+#[test]
+fn forged_adapter() {
+    let cmaes = Cmaes::<2, 4>::try_new(unit_box(), Vector::zeros(), CmaesConfig::DEFAULT).unwrap();
+    let adapter = forged_adapter_around(cmaes);
     for &cut in CUTS {
         let result = adapter_mid_run(adapter.clone(), cut).map(|record| {
             forgery::sweep::<ForgedAdapter<Cmaes<2, 4>>>(&record, |a, rng| {
@@ -696,17 +702,6 @@ fn forged_guarded_and_modelled_adapter() {
     use ctrl_adapt::controller::guard::{Guard, GuardConfig, Limit, Source};
     use ctrl_adapt::model::{Affine, ModelConfig, OnlineModel, RlsModel};
     type Forged = ForgedAdapter<CoordinateSearch<2>, Guard<2, 8>, OnlineModel<Affine, 2, 1, 4>>;
-    let pd = Pd::<1>::try_new(Vector::repeat(3.0), Vector::repeat(0.7))
-        .and_then(|pd| pd.with_limit(Vector::repeat(ACTION_LIMIT)))
-        .unwrap();
-    let policy =
-        LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(ENVELOPE)).unwrap();
-    let config = AdapterConfig {
-        dt: 0.1,
-        failure_cost: 100.0,
-        max_faulty_ticks: 0,
-        learning_episodes: 1_000,
-    };
     let search = CoordinateSearch::<2>::try_new(unit_box(), Vector::zeros(), FINE_SEARCH).unwrap();
     let limit = |k: u16| Limit {
         source: Source::State(k),
@@ -721,18 +716,10 @@ fn forged_guarded_and_modelled_adapter() {
     })
     .unwrap();
     let model = OnlineModel::new(RlsModel::try_new(ModelConfig::default()).unwrap(), Affine);
-    let shaper = QuadraticCost::try_new(Vector::repeat(1.0)).unwrap();
-    let mut adapter: Forged = Adapter::try_new(
-        search,
-        CorrectedPd::new(pd, policy),
-        shaper,
-        config,
-        Vector::zeros(),
-    )
-    .unwrap()
-    .with_guard(guard)
-    .and_then(|a| a.with_model(model))
-    .unwrap();
+    let mut adapter: Forged = forged_adapter_around(search)
+        .with_guard(guard)
+        .and_then(|a| a.with_model(model))
+        .unwrap();
     // Three bare episodes teach the guard its envelope.
     adapter
         .set_mode(ctrl_adapt::controller::Mode::Nominal)
