@@ -1,6 +1,8 @@
 //! The adversarial driver ([`host_tests::adversarial`]) on every optimizer and on the
-//! adapter: a million operations each in release (CI runs `cargo test --release -p
-//! host-tests --test adversarial`), twenty thousand in a debug `cargo test`. Each test
+//! adapter: a million operations each in release, twenty thousand in a debug `cargo test`;
+//! `ADVERSARIAL_OPERATIONS` sets another count (CI runs `ADVERSARIAL_OPERATIONS=250000
+//! cargo test --release -p host-tests --test adversarial`, `scripts/research adversarial`
+//! the million). Each test
 //! checks, after every operation, the contract listed in the driver's docs, and prints what
 //! it exercised. `a_planted_bug_is_caught` shows the driver failing on an optimizer with a
 //! deliberate defect. The `in_flight_*` tests drive the same optimizers wrapped in
@@ -37,12 +39,22 @@ use host_tests::forgery::{
 };
 use rand_core::{RngCore, SeedableRng};
 
-/// Operations per optimizer: the million in release, fewer in debug builds.
-const OPERATIONS: u64 = if cfg!(debug_assertions) {
-    20_000
-} else {
-    1_000_000
-};
+/// Operations per optimizer: `ADVERSARIAL_OPERATIONS` if set (a positive integer), else a
+/// million in release and twenty thousand in debug builds.
+fn operations() -> u64 {
+    let default = if cfg!(debug_assertions) {
+        20_000
+    } else {
+        1_000_000
+    };
+    match std::env::var("ADVERSARIAL_OPERATIONS") {
+        Ok(v) => match v.trim().parse::<u64>() {
+            Ok(n) if n > 0 => n,
+            _ => panic!("ADVERSARIAL_OPERATIONS={v:?}: expected a positive integer"),
+        },
+        Err(_) => default,
+    }
+}
 
 const N: usize = 3;
 
@@ -50,7 +62,7 @@ fn report(name: &str, result: Result<Tally, host_tests::adversarial::Violation>)
     match result {
         Ok(tally) => {
             println!("{name}: {tally}");
-            assert!(tally.operations >= OPERATIONS, "{name}: ran {tally}");
+            assert!(tally.operations >= operations(), "{name}: ran {tally}");
             assert!(tally.built > 0 && tally.accepted_tells > 0 && tally.refused_calls > 0);
         }
         Err(v) => panic!("{name}: {v}"),
@@ -105,7 +117,7 @@ fn sracos_config(rng: &mut DriverRng, limit: u32) -> SracosConfig {
 
 #[test]
 fn coordinate_search() {
-    report("CoordinateSearch<3>", drive(1, OPERATIONS, coordinate));
+    report("CoordinateSearch<3>", drive(1, operations(), coordinate));
 }
 
 fn crs(
@@ -118,7 +130,7 @@ fn crs(
 
 #[test]
 fn controlled_random_search() {
-    report("ControlledRandomSearch<3, 8>", drive(2, OPERATIONS, crs));
+    report("ControlledRandomSearch<3, 8>", drive(2, operations(), crs));
 }
 
 fn two_phase_build(
@@ -140,7 +152,7 @@ fn two_phase_build(
 fn two_phase() {
     report(
         "TwoPhase<ControlledRandomSearch<3, 8>>",
-        drive_in_conditions(3, OPERATIONS, two_phase_build, |two| {
+        drive_in_conditions(3, operations(), two_phase_build, |two| {
             u8::from(two.phase() == Phase::Local)
         }),
     );
@@ -152,7 +164,7 @@ fn sracos_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Sr
 
 #[test]
 fn sracos() {
-    report("Sracos<3>", drive(4, OPERATIONS, sracos_build));
+    report("Sracos<3>", drive(4, operations(), sracos_build));
 }
 
 fn racos_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Racos<N>, Error> {
@@ -170,7 +182,7 @@ fn racos_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Rac
 
 #[test]
 fn racos() {
-    report("Racos<3>", drive(5, OPERATIONS, racos_build));
+    report("Racos<3>", drive(5, operations(), racos_build));
 }
 
 fn cem(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<DiagonalCem<N, 6, 3>, Error> {
@@ -200,7 +212,7 @@ fn cem(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<DiagonalCem
 
 #[test]
 fn diagonal_cem() {
-    report("DiagonalCem<3, 6, 3>", drive(6, OPERATIONS, cem));
+    report("DiagonalCem<3, 6, 3>", drive(6, operations(), cem));
 }
 
 fn cmaes_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Cmaes<N, 7>, Error> {
@@ -220,7 +232,7 @@ fn cmaes_build(rng: &mut DriverRng, bounds: Bounds<N>, limit: u32) -> Result<Cma
 
 #[test]
 fn cmaes() {
-    report("Cmaes<3, 7>", drive(7, OPERATIONS, cmaes_build));
+    report("Cmaes<3, 7>", drive(7, operations(), cmaes_build));
 }
 
 fn rockstar_build(
@@ -256,7 +268,7 @@ fn rockstar_build(
 
 #[test]
 fn rockstar() {
-    report("Rockstar<3, 15>", drive(8, OPERATIONS, rockstar_build));
+    report("Rockstar<3, 15>", drive(8, operations(), rockstar_build));
 }
 
 fn line_bo_build(
@@ -286,7 +298,7 @@ fn line_bo_build(
 
 #[test]
 fn line_bo() {
-    report("LineBo<3, 12>", drive(9, OPERATIONS, line_bo_build));
+    report("LineBo<3, 12>", drive(9, operations(), line_bo_build));
 }
 
 /// Room for this many candidates in flight in the in-flight runs (more than the CEM's 6, the
@@ -301,15 +313,15 @@ fn in_flight_report(name: &str, result: Result<Tally, host_tests::adversarial::V
 fn in_flight_sequential_ones() {
     in_flight_report(
         "CoordinateSearch<3>",
-        drive_in_flight::<N, _, C>(21, OPERATIONS, true, coordinate),
+        drive_in_flight::<N, _, C>(21, operations(), true, coordinate),
     );
     in_flight_report(
         "Sracos<3>",
-        drive_in_flight::<N, _, C>(24, OPERATIONS, true, sracos_build),
+        drive_in_flight::<N, _, C>(24, operations(), true, sracos_build),
     );
     in_flight_report(
         "Racos<3>",
-        drive_in_flight::<N, _, C>(25, OPERATIONS, true, racos_build),
+        drive_in_flight::<N, _, C>(25, operations(), true, racos_build),
     );
 }
 
@@ -317,12 +329,12 @@ fn in_flight_sequential_ones() {
 fn in_flight_controlled_random_search() {
     in_flight_report(
         "ControlledRandomSearch<3, 8>",
-        drive_in_flight::<N, _, C>(22, OPERATIONS, true, crs),
+        drive_in_flight::<N, _, C>(22, operations(), true, crs),
     );
     // TwoPhase changes conditions at its hand-over: its best is checked to be a told cost.
     in_flight_report(
         "TwoPhase<ControlledRandomSearch<3, 8>>",
-        drive_in_flight::<N, _, C>(23, OPERATIONS, false, two_phase_build),
+        drive_in_flight::<N, _, C>(23, operations(), false, two_phase_build),
     );
 }
 
@@ -330,7 +342,7 @@ fn in_flight_controlled_random_search() {
 fn in_flight_diagonal_cem() {
     in_flight_report(
         "DiagonalCem<3, 6, 3>",
-        drive_in_flight::<N, _, C>(26, OPERATIONS, true, cem),
+        drive_in_flight::<N, _, C>(26, operations(), true, cem),
     );
 }
 
@@ -338,7 +350,7 @@ fn in_flight_diagonal_cem() {
 fn in_flight_cmaes() {
     in_flight_report(
         "Cmaes<3, 7>",
-        drive_in_flight::<N, _, C>(27, OPERATIONS, true, cmaes_build),
+        drive_in_flight::<N, _, C>(27, operations(), true, cmaes_build),
     );
 }
 
@@ -346,7 +358,7 @@ fn in_flight_cmaes() {
 fn in_flight_rockstar() {
     in_flight_report(
         "Rockstar<3, 15>",
-        drive_in_flight::<N, _, C>(28, OPERATIONS, true, rockstar_build),
+        drive_in_flight::<N, _, C>(28, operations(), true, rockstar_build),
     );
 }
 
@@ -354,14 +366,14 @@ fn in_flight_rockstar() {
 fn in_flight_line_bo() {
     in_flight_report(
         "LineBo<3, 12>",
-        drive_in_flight::<N, _, C>(29, OPERATIONS, true, line_bo_build),
+        drive_in_flight::<N, _, C>(29, operations(), true, line_bo_build),
     );
 }
 
 #[test]
 fn adapter() {
     // One adapter per optimizer family, a quarter of the operations each.
-    let quarter = OPERATIONS / 4;
+    let quarter = operations() / 4;
     let runs = [
         drive_adapter(11, quarter, |rng, bounds, limit| {
             let d = CoordinateConfig::DEFAULT;
@@ -793,7 +805,7 @@ fn forged_rls_model() {
 /// guard after every episode.
 #[test]
 fn the_guarded_adapter_survives_the_adversarial_driver() {
-    let tally = host_tests::adversarial::drive_guarded_adapter(21, OPERATIONS)
+    let tally = host_tests::adversarial::drive_guarded_adapter(21, operations())
         .unwrap_or_else(|v| panic!("guarded adapter: {v}"));
     println!("guarded adapter: {tally:?}");
     assert!(tally.built > 0 && tally.refused_guards > 0 && tally.round_trips > 0);
