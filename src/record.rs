@@ -56,9 +56,10 @@ use serde::de::DeserializeOwned;
 use crate::error::Error;
 
 /// The version of the record layout and of every type's encoding. It changes whenever a
-/// saved field is added, removed or reordered, or changes its meaning (6: `LineBo`'s
-/// Cholesky factor is saved by rows): a record of another version is refused.
-pub const FORMAT_VERSION: u16 = 6;
+/// saved field is added, removed or reordered, or changes its meaning (7: `ModelBased`
+/// saves its configuration's `restart_after`, its stall count and its restarts): a record
+/// of another version is refused.
+pub const FORMAT_VERSION: u16 = 7;
 
 /// The most words a [`Shape`] holds (a compile-time error beyond).
 pub const SHAPE_CAPACITY: usize = 32;
@@ -1168,6 +1169,35 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// A learner with a restart, told any costs around its bare cost, saves and loads
+        /// back bit-identical after every episode, its stall count and restarts included.
+        #[test]
+        fn a_restarting_model_based_learner_reloads_after_any_episodes(
+            costs in proptest::collection::vec(-1.0f32..4.0, 1..30),
+            restart_after in 1u32..4,
+            seed: u64,
+        ) {
+            let l = model_based::<2>(bounds(), Vector::zeros());
+            let config = ModelBasedConfig { restart_after, ..*l.config() };
+            let mut l = ModelBased::try_new(bounds(), *l.fallback(), config).unwrap();
+            l.record(Vector::zeros(), 0.0).unwrap();
+            let mut r = rng(seed);
+            for c in costs {
+                if model_propose(&mut l, &mut r).is_err() {
+                    break;
+                }
+                l.tell(c).unwrap();
+                let record = bytes(&l);
+                let loaded: ModelBased<CoordinateSearch<2>, 2> = load(&record).unwrap();
+                proptest::prop_assert_eq!(loaded, l);
+                proptest::prop_assert_eq!(bytes(&loaded), record);
+            }
+        }
+    }
+
     /// Checks: a decoded model or learner whose checksum is right but whose content is not
     /// is refused naming the field: a NaN or too large variance, an asymmetric covariance,
     /// a radius beyond its bounds, a model candidate with a NaN prediction.
@@ -1256,6 +1286,87 @@ mod tests {
                 RecordError::Invalid(Error::InvalidParameter("uncertainty_weight"))
             );
         }
+    }
+
+    /// A learner whose trust region has restarted once and has stalled twice since (its
+    /// `restart_after` 3) reloads bit-identical and continues identically; a record whose
+    /// stall count is forged to `restart_after`, whose restarts outnumber its episodes, or
+    /// whose `restart_after` is forged to 0 beside a restart, is refused naming the field.
+    /// The payload is the learner's fields in order: the configuration first (its
+    /// `restart_after` 37 bytes after the start of `initial_radius`: six f32, a one-byte
+    /// varint, three f32), the stall count and the restarts last (one-byte varints before
+    /// the CRC).
+    #[test]
+    fn a_restarted_model_based_learner_reloads_and_its_counts_are_checked() {
+        type Learner = ModelBased<CoordinateSearch<2>, 2>;
+        let config = ModelBasedConfig {
+            initial_radius: 0.375,
+            inner_evaluations: 16,
+            restart_after: 3,
+            ..ModelBasedConfig::DEFAULT
+        };
+        let fallback =
+            CoordinateSearch::try_new(bounds(), Vector::zeros(), CoordinateConfig::DEFAULT)
+                .unwrap();
+        let mut l: Learner = ModelBased::try_new(bounds(), fallback, config).unwrap();
+        l.record(Vector::zeros(), 0.0).unwrap();
+        let mut r = rng(12);
+        // Four episodes down to the minimum radius (0.375 × 0.6⁴ < 0.05), three stalled
+        // there (a restart), four down again and two stalled: none beats the bare cost 0.
+        for _ in 0..13 {
+            model_propose(&mut l, &mut r).unwrap();
+            l.tell(1.0).unwrap();
+        }
+        assert_eq!((l.restarts(), l.stalled(), l.evaluations()), (1, 2, 14));
+        let record = bytes(&l);
+        let mut loaded: Learner = load(&record).unwrap();
+        assert_eq!(loaded, l);
+        assert_eq!(bytes(&loaded), record);
+        // The third stalled episode restarts both alike.
+        let mut r2 = r.clone();
+        model_propose(&mut l, &mut r).unwrap();
+        l.tell(1.0).unwrap();
+        model_propose(&mut loaded, &mut r2).unwrap();
+        loaded.tell(1.0).unwrap();
+        assert_eq!(
+            (loaded.restarts(), loaded.stalled(), loaded.radius()),
+            (2, 0, 0.375)
+        );
+        assert_eq!(bytes(&loaded), bytes(&l));
+
+        let end = record.len() - 4;
+        assert_eq!(
+            record[end - 2..end],
+            [2, 1],
+            "the stall count and the restarts"
+        );
+        let forged = |at: usize, with: u8| {
+            let mut forged = record.clone();
+            forged[at] = with;
+            let checksum = CHECKSUM.checksum(&forged[..end]).to_le_bytes();
+            forged[end..].copy_from_slice(&checksum);
+            load::<Learner>(&forged).unwrap_err()
+        };
+        assert_eq!(
+            forged(end - 2, 3),
+            RecordError::Invalid(Error::InvalidParameter("stalled"))
+        );
+        assert_eq!(
+            forged(end - 1, 15),
+            RecordError::Invalid(Error::InvalidParameter("restarts"))
+        );
+        let radius = 0.375f32.to_le_bytes();
+        let at = (0..end).find(|&i| record[i..i + 4] == radius).unwrap() + 37;
+        assert_eq!(record[at], 3, "restart_after");
+        assert_eq!(
+            forged(at, 0),
+            RecordError::Invalid(Error::InvalidParameter("restarts"))
+        );
+        // Below the stall count (2): the count is one `tell` could not have left.
+        assert_eq!(
+            forged(at, 2),
+            RecordError::Invalid(Error::InvalidParameter("stalled"))
+        );
     }
 
     /// An adapter feeding a plant model saves and loads back equal, the model's ticks and
@@ -1379,7 +1490,7 @@ mod tests {
         use alloc::string::ToString;
         assert_eq!(
             RecordError::Version { found: 1 }.to_string(),
-            "the record has format version 1, this build reads 6"
+            "the record has format version 1, this build reads 7"
         );
     }
 

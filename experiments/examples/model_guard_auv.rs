@@ -25,7 +25,7 @@
 //!   command noise uniform in ±D m/s per axis and tick: they feed the model, teach the
 //!   guard's envelope, and are not recorded as candidates), the proposals guarded;
 //! * `…-restart-R`: the trust region restarted after R stalled proposals at its minimum
-//!   radius (`model_learner::Settings::restart`); `…-min-radius-0.15`: a minimum radius of
+//!   radius (`ModelBasedConfig::restart_after`); `…-min-radius-0.15`: a minimum radius of
 //!   0.15 instead of 0.05.
 //!
 //! `PREDICTED=N` prints each run's first N episodes as origin, real cost / predicted cost.
@@ -47,8 +47,8 @@ struct Setting {
     name: &'static str,
     plant: GuardedSettings,
     explore: f32,
-    /// `model_learner::Settings::restart`.
-    restart: Option<usize>,
+    /// `ModelBasedConfig::restart_after` (0: never).
+    restart_after: u32,
     /// `ModelBasedConfig::min_radius`.
     min_radius: f32,
 }
@@ -64,7 +64,7 @@ fn settings() -> Vec<Setting> {
         name,
         plant: GuardedSettings { dither, ..plant },
         explore: 0.0,
-        restart: None,
+        restart_after: 0,
         min_radius: 0.05,
     };
     vec![
@@ -75,14 +75,14 @@ fn settings() -> Vec<Setting> {
                 ..plant
             },
             explore: 0.05,
-            restart: None,
+            restart_after: 0,
             min_radius: 0.05,
         },
         Setting {
             name: "guard",
             plant,
             explore: 0.05,
-            restart: None,
+            restart_after: 0,
             min_radius: 0.05,
         },
         Setting {
@@ -92,18 +92,18 @@ fn settings() -> Vec<Setting> {
                 ..plant
             },
             explore: 0.05,
-            restart: None,
+            restart_after: 0,
             min_radius: 0.05,
         },
         dither("dither-0.02", 0.02),
         dither("dither-0.05", 0.05),
         dither("dither-0.1", 0.1),
         Setting {
-            restart: Some(5),
+            restart_after: 5,
             ..dither("dither-0.05-restart-5", 0.05)
         },
         Setting {
-            restart: Some(10),
+            restart_after: 10,
             ..dither("dither-0.05-restart-10", 0.05)
         },
         Setting {
@@ -113,14 +113,14 @@ fn settings() -> Vec<Setting> {
                 ..plant
             },
             explore: 0.05,
-            restart: Some(5),
+            restart_after: 5,
             min_radius: 0.05,
         },
         Setting {
             name: "guard-restart-5",
             plant,
             explore: 0.05,
-            restart: Some(5),
+            restart_after: 5,
             min_radius: 0.05,
         },
         Setting {
@@ -130,7 +130,7 @@ fn settings() -> Vec<Setting> {
                 ..plant
             },
             explore: 0.05,
-            restart: Some(5),
+            restart_after: 5,
             min_radius: 0.05,
         },
         Setting {
@@ -160,11 +160,11 @@ fn run(task: Task, seed: u64, setting: &Setting) -> Outcome {
     let learner = Settings {
         config: ModelBasedConfig {
             min_radius: setting.min_radius,
+            restart_after: setting.restart_after,
             ..chosen.config
         },
         explorations: setting.plant.explorations,
         explore: Vector::repeat(setting.explore),
-        restart: setting.restart,
         ..chosen
     };
     let run = learn(

@@ -209,7 +209,6 @@ fn learn(seed: u64, current: AuvConfig, settings: Settings) -> Run {
         margin: 0.2,
         explorations: settings.explorations,
         explore: scale(settings.velocity_scale) * settings.explore,
-        restart: None,
         // A prediction that failed counts as an error of the failure cost, 10.
         initial_error: if settings.initial_error < 0.0 {
             InitialError::Measured { cap: 10.0 }

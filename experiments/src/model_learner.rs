@@ -109,11 +109,6 @@ pub struct Settings<const P: usize> {
     pub explore: Vector<P>,
     /// The initial prediction error.
     pub initial_error: InitialError,
-    /// Restart the trust region after this many consecutive proposals that did not improve
-    /// the best real θ while its radius was at `config.min_radius` (the learner is rebuilt
-    /// around the best real θ with the initial radius, its fallback as it was; TuRBO's
-    /// restart of a collapsed trust region, Eriksson et al. 2019); `None`: never.
-    pub restart: Option<usize>,
 }
 
 impl<const P: usize> Settings<P> {
@@ -130,7 +125,6 @@ impl<const P: usize> Settings<P> {
             explorations: 3,
             explore: Vector::repeat(0.05),
             initial_error: InitialError::Fixed(0.0),
-            restart: None,
         }
     }
 }
@@ -175,13 +169,13 @@ fn uniform<const P: usize>(rng: &mut impl RngCore, half_width: &Vector<P>) -> Ve
 /// The learner on `plant` for at most `budget` real episodes (fewer if the fallback is
 /// spent while the model's candidate does not pass): the bare controller (u = 0), the
 /// exploration draws (each predicted before it runs), then `ModelBased` with `fallback`
-/// and the inner optimizer `inner` builds, its threshold the bare cost plus the margin,
-/// rebuilt around its best real u when its trust region has stalled ([`Settings::restart`]).
+/// and the inner optimizer `inner` builds, its threshold the bare cost plus the margin (its
+/// trust region restarted by the learner itself when `config.restart_after` says so).
 /// Errors: the learner's construction (a bad configuration or a non-finite bare cost).
 pub fn learn<const P: usize, O: Optimizer<P>>(
     plant: &mut impl Plant<P>,
     bounds: Bounds<P>,
-    fallback: impl Optimizer<P> + Clone,
+    fallback: impl Optimizer<P>,
     mut inner: impl FnMut(Bounds<P>, Vector<P>) -> Result<O, Error>,
     settings: &Settings<P>,
     budget: usize,
@@ -236,17 +230,7 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         run.uncertainty.push(None);
         run.errors.push(learner.prediction_error());
     }
-    let mut stalled = 0;
     while run.costs.len() < budget {
-        if settings.restart.is_some_and(|r| stalled >= r) {
-            let best = learner.best().ok_or(Error::InvalidParameter("best"))?;
-            learner = ModelBased::try_new(bounds, learner.fallback().clone(), config)?;
-            learner.set_reference(bare.cost)?;
-            learner.record(best.theta, best.cost)?;
-            stalled = 0;
-        }
-        let at_min = learner.radius() <= config.min_radius;
-        let best_before = learner.best().map(|b| b.cost);
         let error = learner.prediction_error();
         let t0 = Instant::now();
         let proposal =
@@ -273,8 +257,6 @@ pub fn learn<const P: usize, O: Optimizer<P>>(
         if told.is_err() {
             break;
         }
-        let improved = learner.best().map(|b| b.cost) != best_before;
-        stalled = if at_min && !improved { stalled + 1 } else { 0 };
     }
     run.best = learner.best().map(|b| to_vec(&b.theta));
     Ok(run)
@@ -935,11 +917,12 @@ mod tests {
 
     /// The restart of a collapsed trust region (seed 7, 30 episodes, no explorations): the
     /// misled model's steps never improve on u = 0, so the radius shrinks to its minimum
-    /// 0.05 and, without a restart, every later step stays within it; with a restart after
-    /// 3 stalled steps the radius is back at 0.15 and later steps go beyond 0.1 again.
+    /// 0.05 and, without a restart, every later step stays within it; with the learner's
+    /// restart after 3 stalled steps (`ModelBasedConfig::restart_after`) the radius is back
+    /// at 0.15 and later steps go beyond 0.1 again.
     #[test]
     fn a_collapsed_trust_region_restarts() {
-        let widest_late_step = |restart: Option<usize>| {
+        let widest_late_step = |restart_after: u32| {
             let mut plant = Misled { runs: Vec::new() };
             let fallback = CoordinateSearch::try_new(
                 unit_box(),
@@ -951,10 +934,14 @@ mod tests {
                 },
             )
             .unwrap();
+            let chosen = Settings::chosen(50);
             let settings = Settings {
+                config: ModelBasedConfig {
+                    restart_after,
+                    ..chosen.config
+                },
                 explorations: 0,
-                restart,
-                ..Settings::chosen(50)
+                ..chosen
             };
             let mut rng = Xoshiro128PlusPlus::seed_from_u64(7);
             let run = learn(
@@ -976,8 +963,8 @@ mod tests {
                 .map(|u| u.amax())
                 .fold(0.0f32, f32::max)
         };
-        assert!(widest_late_step(None) <= 0.05);
-        assert!(widest_late_step(Some(3)) > 0.1);
+        assert!(widest_late_step(0) <= 0.05);
+        assert!(widest_late_step(3) > 0.1);
     }
 
     /// The oracle's `model` method on the AUV (seed 1, 6 episodes): its first episode is

@@ -350,8 +350,9 @@ fn model_of_sphere(theta: &Vector<2>, rng: &mut impl RngCore) -> Result<f32, Err
 /// One proposal and its real episode (on [`sphere`]); every third step, when nothing is
 /// pending, also an exploration episode of the caller's own ([`ModelBased::record`]).
 /// Checks the proposal (finite, in the box, the pending one), the trust radius (within the
-/// configured range), the measured prediction error (finite, ≥ 0) and the best (finite, in
-/// the box, never worse). `Ok(false)` when the fallback is spent.
+/// configured range), the measured prediction error (finite, ≥ 0), the restart's counts
+/// (the stall count below `restart_after` when set, the restarts at most the episodes) and
+/// the best (finite, in the box, never worse). `Ok(false)` when the fallback is spent.
 fn model_based_step(
     learner: &mut ForgedModelBased,
     rng: &mut DriverRng,
@@ -392,6 +393,13 @@ fn model_based_step(
     if !(error.is_finite() && error >= 0.0) {
         return Err(format!("tell {step}: prediction error {error:e}"));
     }
+    let (stalled, restarts) = (learner.stalled(), learner.restarts());
+    let restart = config.restart_after;
+    if (restart > 0 && stalled >= restart) || restarts > learner.evaluations() {
+        return Err(format!(
+            "tell {step}: stalled {stalled}, restarts {restarts} (restart after {restart})"
+        ));
+    }
     match learner.best() {
         Some(best)
             if bounds.check(&best.theta, "best").is_err()
@@ -409,8 +417,9 @@ fn model_based_step(
 /// (‖θ − 0.3‖² + U(0, 0.01)), the model's predictions off by a shift and sometimes failing
 /// or not finite, with an exploration episode of the caller's own now and then. Every
 /// proposal must be finite, in the box and the pending one; the trust radius within its
-/// configured range; the measured prediction error finite and ≥ 0; the best finite, in the
-/// box and never worse. A proposal pending in the record is told first. Returns the steps
+/// configured range; the measured prediction error finite and ≥ 0; the restart's counts
+/// within theirs; the best finite, in the box and never worse. A proposal pending in the
+/// record is told first. Returns the steps
 /// run.
 pub fn run_model_based(
     mut learner: ForgedModelBased,

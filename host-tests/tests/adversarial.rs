@@ -761,9 +761,10 @@ fn forged_guarded_and_modelled_adapter() {
     }
 }
 
-/// The model-based learner: each loaded forgery proposes (a coordinate search on a model
-/// that is off by a shift and sometimes fails) and is told real costs, a tenth of
-/// [`FORGED_STEPS`] proposals (each of them 30 predictions).
+/// The model-based learner, restarting its trust region after 3 stalled proposals: each
+/// loaded forgery proposes (a coordinate search on a model that is off by a shift and
+/// sometimes fails) and is told real costs, a tenth of [`FORGED_STEPS`] proposals (each of
+/// them 30 predictions).
 #[test]
 fn forged_model_based() {
     use ctrl_adapt::model::{ModelBased, ModelBasedConfig};
@@ -771,6 +772,7 @@ fn forged_model_based() {
         CoordinateSearch::<2>::try_new(unit_box(), Vector::zeros(), FINE_SEARCH).unwrap();
     let config = ModelBasedConfig {
         inner_evaluations: 30,
+        restart_after: 3,
         ..ModelBasedConfig::DEFAULT
     };
     let learner: ForgedModelBased = ModelBased::try_new(unit_box(), fallback, config).unwrap();

@@ -439,6 +439,10 @@ pub trait DynLearner: Send + Sync {
     fn radius(&self) -> f32;
     /// `ModelBased::evaluations`.
     fn evaluations(&self) -> u32;
+    /// `ModelBased::stalled`.
+    fn stalled(&self) -> u32;
+    /// `ModelBased::restarts`.
+    fn restarts(&self) -> u32;
     /// `ModelBased::config`.
     fn config(&self) -> ModelBasedConfig;
     /// The box.
@@ -539,6 +543,14 @@ where
 
     fn evaluations(&self) -> u32 {
         self.0.evaluations()
+    }
+
+    fn stalled(&self) -> u32 {
+        self.0.stalled()
+    }
+
+    fn restarts(&self) -> u32 {
+        self.0.restarts()
     }
 
     fn config(&self) -> ModelBasedConfig {

@@ -318,3 +318,45 @@ def test_the_cmaes_fallback_has_the_packages_population_at_every_dimension():
         l = ModelBased(-np.ones(n), np.ones(n), "cmaes", seed=1)
         assert l.rust_type == f"ModelBased<{ctrl_adapt.rust_type('cmaes', n)}, {n}>"
         assert ModelBased.load(l.save()).rust_type == l.rust_type
+
+
+def test_restart_after_restarts_a_stalled_trust_region_and_round_trips():
+    """``restart_after=3``: the third proposal made at the minimum radius that does not
+    improve the best restarts the trust region at its initial radius; the stall count and the
+    restarts are in the record, so a reloaded learner (its RNG seeded anew) restarts on the
+    same episode as the original, and both then hold the same state (the measured error
+    statistic, which their different candidates fed, starts afresh)."""
+    l = ModelBased(-np.ones(2), np.ones(2), seed=3, restart_after=3, inner_evaluations=30,
+                   inner_config={"max_evaluations": 30})
+    assert l.config["restart_after"] == 3 and (l.stalled, l.restarts) == (0, 0)
+    l.record(np.zeros(2), 0.0)  # no cost told below beats it
+    seen = []
+    for _ in range(5):
+        # A model that promises every θ but the best to be better: its candidates propose.
+        l.propose(lambda t: -float(np.sum(np.square(t))))
+        l.tell(1.0)
+        seen.append((np.float32(l.radius), l.stalled, l.restarts))
+    # 0.15 → × 0.6 → × 0.6 → 0.05 (proposals made above the minimum; float32 products, as
+    # the learner computes them), then two stalled at the minimum.
+    shrunk = F32(0.15) * F32(0.6)
+    assert seen == [(shrunk, 0, 0), (shrunk * F32(0.6), 0, 0), (F32(0.05), 0, 0),
+                    (F32(0.05), 1, 0), (F32(0.05), 2, 0)]
+    again = ModelBased.load(l.save(), seed=4)
+    assert again.save() == l.save() and (again.stalled, again.restarts) == (2, 0)
+    assert again.config["restart_after"] == 3
+    for m in (l, again):
+        m.propose(lambda t: -float(np.sum(np.square(t))))
+        m.tell(1.0)
+        assert (np.float32(m.radius), m.stalled, m.restarts) == (F32(0.15), 0, 1)
+    assert again.save() == l.save()
+    # Without it, the same proposals never restart.
+    never = ModelBased(-np.ones(2), np.ones(2), seed=3, inner_evaluations=30,
+                       inner_config={"max_evaluations": 30})
+    never.record(np.zeros(2), 0.0)
+    for _ in range(6):
+        never.propose(lambda t: -float(np.sum(np.square(t))))
+        never.tell(1.0)
+    assert (np.float32(never.radius), never.stalled, never.restarts) == (F32(0.05), 3, 0)
+    for bad in (-1, 1.5, "3"):
+        with pytest.raises(ModelError):
+            ModelBased(-np.ones(2), np.ones(2), restart_after=bad)

@@ -20,7 +20,12 @@
 //! 3. [`ModelBased::tell`] reports the real cost: the best real θ is updated, the fallback
 //!    is told only its own candidates, the error of the proposal's prediction is added to
 //!    the measured prediction error ([`ModelBased::prediction_error`]), and the trust
-//!    region grows after an improvement and shrinks otherwise.
+//!    region grows after an improvement and shrinks otherwise. With `restart_after`
+//!    R > 0, R consecutive told proposals made at the minimum radius without improving the
+//!    best real θ restart the trust region: the radius is `initial_radius` again and the
+//!    prediction error is measured afresh from `initial_error`; the best real θ, the
+//!    reference and the fallback stay (after TuRBO's restart of a collapsed trust region,
+//!    Eriksson et al., NeurIPS 2019, which starts anew from a fresh design instead).
 //!
 //! Episodes the caller runs itself (the bare controller, small exploration episodes that
 //! make the model identifiable) are reported with [`ModelBased::record`].
@@ -98,6 +103,17 @@ pub struct ModelBasedConfig {
     /// candidates that drive the model where it has no data are both avoided and screened
     /// out. 0 (the default) ignores the uncertainty: J is the predicted cost.
     pub uncertainty_weight: f32,
+    /// R of the trust region's restart (0, the default: never). After R consecutive told
+    /// proposals ([`ModelBased::tell`]) that were made while the radius was at
+    /// `min_radius` and did not improve the best real θ, the radius goes back to
+    /// `initial_radius` and the measured prediction error back to `initial_error`; the best
+    /// real θ, the reference, the fallback and the episode count stay (TuRBO's restart of a
+    /// collapsed trust region, Eriksson et al., NeurIPS 2019). A trust region that shrank to
+    /// its minimum around a best θ picked by a lucky noisy episode otherwise stays there
+    /// for the rest of the run. On the AUV under the runtime guard, R = 5 was chosen on
+    /// seeds 101–110 (`experiments/findings/model.md`, "The learner under the runtime
+    /// guard"). Any value is valid.
+    pub restart_after: u32,
 }
 
 impl ModelBasedConfig {
@@ -114,9 +130,10 @@ impl ModelBasedConfig {
         error_weight: 0.0,
         initial_error: 0.0,
         uncertainty_weight: 0.0,
+        restart_after: 0,
     };
 
-    /// Checks every field (named in the error).
+    /// Checks every field (named in the error; `restart_after` takes any value).
     pub fn validate(&self) -> Result<(), Error> {
         require(
             self.min_radius > 0.0 && self.min_radius.is_finite(),
@@ -252,6 +269,10 @@ pub struct ModelBased<F, const N: usize> {
     /// Σ (real − predicted)² over the told proposals with a prediction, and their number.
     squared_errors: f32,
     errors: u32,
+    /// Consecutive told proposals made at the minimum radius that did not improve the best
+    /// (saturating), and the trust region's restarts so far (saturating).
+    stalled: u32,
+    restarts: u32,
 }
 
 impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
@@ -277,6 +298,8 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
             pending_prediction: None,
             squared_errors: 0.0,
             errors: 0,
+            stalled: 0,
+            restarts: 0,
         })
     }
 
@@ -460,7 +483,8 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
         Ok(proposal)
     }
 
-    /// Reports the real cost of the pending proposal. A missing proposal
+    /// Reports the real cost of the pending proposal, and restarts the trust region when it
+    /// has stalled ([`ModelBasedConfig::restart_after`]). A missing proposal
     /// ([`Error::NoPendingAsk`]) or a non-finite cost ([`Error::NonFinite`]) changes nothing.
     pub fn tell(&mut self, cost: f32) -> Result<(), Error> {
         let proposal = self.pending.ok_or(Error::NoPendingAsk)?;
@@ -476,11 +500,29 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
             self.errors = self.errors.saturating_add(1);
         }
         self.evaluations = self.evaluations.saturating_add(1);
-        self.radius = if self.improve(proposal.theta, cost) {
+        // The proposal was searched at the minimum radius (the radius it was made with).
+        let at_min = self.radius <= self.config.min_radius;
+        let improved = self.improve(proposal.theta, cost);
+        self.radius = if improved {
             min(self.radius * self.config.grow, self.config.max_radius)
         } else {
             max(self.radius * self.config.shrink, self.config.min_radius)
         };
+        self.stalled = if at_min && !improved {
+            self.stalled.saturating_add(1)
+        } else {
+            0
+        };
+        let restart = self.config.restart_after;
+        if restart > 0 && self.stalled >= restart {
+            // The model's error measured around the old incumbent at the smallest radius
+            // says little about the wider box: it is measured afresh.
+            self.radius = self.config.initial_radius;
+            self.squared_errors = 0.0;
+            self.errors = 0;
+            self.stalled = 0;
+            self.restarts = self.restarts.saturating_add(1);
+        }
         Ok(())
     }
 
@@ -495,9 +537,10 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
     }
 
     /// The model's measured prediction error of a real episode's cost: the root mean square
-    /// of real − predicted over the proposals told so far that the model could predict
-    /// (the model's own and the fallback's), with `initial_error` counted as one more.
-    /// The screen adds `error_weight` times this to a candidate's prediction.
+    /// of real − predicted over the proposals told so far (since the trust region's last
+    /// restart, if any) that the model could predict (the model's own and the fallback's),
+    /// with `initial_error` counted as one more. The screen adds `error_weight` times this
+    /// to a candidate's prediction.
     pub fn prediction_error(&self) -> f32 {
         let i = self.config.initial_error;
         let sum = min(min(i * i, f32::MAX) + self.squared_errors, f32::MAX);
@@ -512,6 +555,18 @@ impl<F: Optimizer<N>, const N: usize> ModelBased<F, N> {
     /// Real episodes reported (told and recorded).
     pub fn evaluations(&self) -> u32 {
         self.evaluations
+    }
+
+    /// Consecutive told proposals, up to the last, that were made at the minimum radius and
+    /// did not improve the best real θ (reset by an improvement, a proposal made at a larger
+    /// radius, and a restart); with `restart_after` R > 0 it stays below R.
+    pub fn stalled(&self) -> u32 {
+        self.stalled
+    }
+
+    /// The trust region's restarts so far ([`ModelBasedConfig::restart_after`]).
+    pub fn restarts(&self) -> u32 {
+        self.restarts
     }
 
     /// The fallback optimizer.
@@ -535,8 +590,11 @@ where
     /// the learner's) and the state's: the radius within its bounds, a finite reference, a
     /// best real θ inside the box with a finite cost, and a pending proposal inside the box
     /// (a model candidate with a finite prediction; a fallback candidate the one the
-    /// fallback will be told), and the prediction-error statistic: a finite, non-negative
-    /// sum, and a pending prediction only beside a pending proposal, finite.
+    /// fallback will be told), the prediction-error statistic: a finite, non-negative
+    /// sum, and a pending prediction only beside a pending proposal, finite; and the
+    /// restart's counts as `tell` leaves them: the stall count and the restarts at most the
+    /// episodes reported (each takes a told episode), the stall count below `restart_after`
+    /// when it is set (it restarts on reaching it), and no restart when it is not.
     pub(crate) fn check_decoded(&self) -> Result<(), Error> {
         use crate::error::require_finite;
         self.config.validate()?;
@@ -555,6 +613,15 @@ where
         require(
             self.squared_errors.is_finite() && self.squared_errors >= 0.0,
             "squared_errors",
+        )?;
+        let restart = self.config.restart_after;
+        require(
+            self.stalled <= self.evaluations && (restart == 0 || self.stalled < restart),
+            "stalled",
+        )?;
+        require(
+            self.restarts <= self.evaluations && (restart > 0 || self.restarts == 0),
+            "restarts",
         )?;
         require(
             self.pending_prediction
@@ -588,6 +655,7 @@ mod tests {
     use crate::optimizer::{Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch};
     use crate::testing::rng;
     use proptest::prelude::*;
+    use rand_xoshiro::Xoshiro128PlusPlus;
 
     type Learner = ModelBased<CoordinateSearch<2>, 2>;
 
@@ -799,6 +867,136 @@ mod tests {
         assert_eq!(p.source, Source::Fallback);
     }
 
+    /// One proposal told `cost`: the model predicts the real cost 0.1 too low, or (`fails`)
+    /// cannot predict at all, so that the fallback proposes.
+    fn step(l: &mut Learner, r: &mut Xoshiro128PlusPlus, fails: bool, cost: f32) {
+        let p = l
+            .propose(r, inner, |t| {
+                if fails {
+                    Err(Error::NonFinite("prediction"))
+                } else {
+                    Ok(real(t) - 0.1)
+                }
+            })
+            .unwrap();
+        assert_eq!(p.source == Source::Fallback, fails);
+        l.tell(cost).unwrap();
+    }
+
+    /// With `restart_after` 3: the radius shrinks 0.15 → 0.09 → 0.054 → 0.05 without a
+    /// stalled proposal (none was made at the minimum); the third that is made there and
+    /// does not improve restarts the trust region. Beside a twin that never restarts, told
+    /// the same, the restart changes only the radius (back to 0.15), the measured error
+    /// (back to `initial_error`) and the counts: the best, the fallback, the reference and
+    /// the episode count are the twin's.
+    #[test]
+    fn a_stalled_trust_region_restarts_and_keeps_the_rest() {
+        let config = ModelBasedConfig {
+            initial_error: 0.5,
+            restart_after: 3,
+            ..ModelBasedConfig::DEFAULT
+        };
+        let mut l = learner(config);
+        let mut twin = learner(ModelBasedConfig {
+            restart_after: 0,
+            ..config
+        });
+        let (mut r, mut rt) = (rng(7), rng(7));
+        for m in [&mut l, &mut twin] {
+            // Nothing told below beats the bare cost 0; the screen's threshold 10 passes
+            // every model candidate better than the bare θ.
+            m.record(Vector::zeros(), 0.0).unwrap();
+            m.set_reference(10.0).unwrap();
+        }
+        let radii = [0.09, 0.054, 0.05, 0.05, 0.05];
+        for (k, radius) in radii.into_iter().enumerate() {
+            // Every other proposal the fallback's, so that it is told too.
+            step(&mut l, &mut r, k % 2 == 0, 1.0);
+            step(&mut twin, &mut rt, k % 2 == 0, 1.0);
+            assert!((l.radius() - radius).abs() < 1e-6, "{k}: {}", l.radius());
+            assert_eq!(l.stalled(), k.saturating_sub(2) as u32);
+            assert_eq!(l, ModelBased { config, ..twin });
+        }
+        assert!(l.prediction_error() != 0.5);
+        step(&mut l, &mut r, false, 1.0);
+        step(&mut twin, &mut rt, false, 1.0);
+        assert_eq!(
+            (twin.radius(), twin.stalled(), twin.restarts()),
+            (0.05, 3, 0)
+        );
+        assert_eq!((l.radius(), l.stalled(), l.restarts()), (0.15, 0, 1));
+        assert_eq!(l.prediction_error(), 0.5);
+        assert_eq!(l.evaluations(), 7);
+        assert_eq!(
+            l,
+            ModelBased {
+                config,
+                radius: 0.15,
+                squared_errors: 0.0,
+                errors: 0,
+                stalled: 0,
+                restarts: 1,
+                ..twin
+            }
+        );
+        assert_ne!(
+            *l.fallback(),
+            learner(config).fallback,
+            "the fallback was told"
+        );
+        // The restarted region searches the initial radius again.
+        let p = l.propose(&mut r, inner, |t| Ok(real(t) - 0.1)).unwrap();
+        assert!(
+            p.theta.amax() > 0.05 && p.theta.amax() <= 0.15 + 1e-6,
+            "{}",
+            p.theta
+        );
+    }
+
+    /// `restart_after` 0: the stall count grows without bound and the radius stays at its
+    /// minimum.
+    #[test]
+    fn restart_after_zero_never_restarts() {
+        let mut l = learner(ModelBasedConfig::DEFAULT);
+        l.record(Vector::zeros(), 0.0).unwrap();
+        let mut r = rng(8);
+        for _ in 0..40 {
+            step(&mut l, &mut r, false, 1.0);
+        }
+        assert_eq!((l.radius(), l.stalled(), l.restarts()), (0.05, 37, 0));
+    }
+
+    /// An improvement resets the stall count (and grows the radius, so that the next
+    /// proposal is not made at the minimum): a restart then takes `restart_after` stalled
+    /// proposals from there.
+    #[test]
+    fn an_improvement_resets_the_stall_count() {
+        let mut l = learner(ModelBasedConfig {
+            restart_after: 3,
+            ..ModelBasedConfig::DEFAULT
+        });
+        l.record(Vector::zeros(), 0.0).unwrap();
+        let mut r = rng(9);
+        for _ in 0..5 {
+            step(&mut l, &mut r, false, 1.0);
+        }
+        assert_eq!((l.radius(), l.stalled()), (0.05, 2));
+        // An improvement at the minimum radius: 0.05 × 1.5.
+        step(&mut l, &mut r, false, -1.0);
+        assert_eq!(l.stalled(), 0);
+        assert!((l.radius() - 0.075).abs() < 1e-6);
+        // Made at 0.075: not stalled; back to the minimum.
+        step(&mut l, &mut r, false, 1.0);
+        assert_eq!((l.radius(), l.stalled()), (0.05, 0));
+        for k in 1..3 {
+            step(&mut l, &mut r, false, 1.0);
+            assert_eq!((l.radius(), l.stalled(), l.restarts()), (0.05, k, 0));
+        }
+        step(&mut l, &mut r, false, 1.0);
+        assert_eq!((l.radius(), l.stalled(), l.restarts()), (0.15, 0, 1));
+        assert_eq!(l.best().unwrap().cost, -1.0);
+    }
+
     #[test]
     fn refuses_bad_tells_and_records_without_change() {
         let mut l = learner(ModelBasedConfig::DEFAULT);
@@ -907,24 +1105,26 @@ mod tests {
     }
 
     proptest! {
-        /// Any predictions, real costs and screen weights: no panic, proposals inside the
-        /// bounds, the radius inside its range, the best real cost never worse, the
-        /// measured prediction error finite.
+        /// Any predictions, real costs, screen weights and restarts: no panic, proposals
+        /// inside the bounds, the radius inside its range, the best real cost never worse,
+        /// the measured prediction error finite, the stall count below `restart_after`.
         #[test]
         fn never_panics(
             predictions in proptest::collection::vec(any::<f32>(), 1..40),
-            costs in proptest::collection::vec(any::<f32>(), 1..12),
+            costs in proptest::collection::vec(any::<f32>(), 1..20),
             seed in any::<u64>(),
             error_weight in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
             initial_error in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
             uncertainty_weight in prop_oneof![Just(0.0f32), 0.0f32..1e3, Just(f32::MAX)],
             uncertainties in proptest::collection::vec(any::<f32>(), 1..40),
+            restart_after in prop_oneof![Just(0u32), 1u32..6, Just(u32::MAX)],
         ) {
             let mut l = learner(ModelBasedConfig {
                 inner_evaluations: 30,
                 error_weight,
                 initial_error,
                 uncertainty_weight,
+                restart_after,
                 ..ModelBasedConfig::DEFAULT
             });
             let _ = l.set_reference(costs[0]);
@@ -949,6 +1149,8 @@ mod tests {
                     best = b.cost;
                 }
                 prop_assert!(l.prediction_error().is_finite() && l.prediction_error() >= 0.0);
+                prop_assert!(restart_after == 0 || l.stalled() < restart_after);
+                prop_assert!(l.restarts() <= l.evaluations());
             }
         }
     }

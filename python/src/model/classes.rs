@@ -352,8 +352,9 @@ impl PyRlsModel {
 /// `inner` each `"coordinate"` or `"cmaes"`, their configurations dicts of the Rust
 /// configurations' fields (`CoordinateConfig`, `CmaesConfig`); `**config` fields of
 /// `ModelBasedConfig` (`initial_radius`, `min_radius`, `max_radius`, `grow`, `shrink`,
-/// `margin`, `inner_evaluations`, `error_weight`, `initial_error`); `start` the fallback's
-/// θ⁰ (the box's centre by default). Raises `ModelError` (a `ValueError`) for an unknown
+/// `margin`, `inner_evaluations`, `error_weight`, `initial_error`, `restart_after`, and
+/// `uncertainty_weight`, which has no effect here: `propose` takes point predictions);
+/// `start` the fallback's θ⁰ (the box's centre by default). Raises `ModelError` (a `ValueError`) for an unknown
 /// name or field, a value out of range, mismatched lengths. See `ctrl_adapt.model` for an
 /// example.
 #[pyclass(module = "ctrl_adapt._native", name = "ModelBased")]
@@ -514,6 +515,19 @@ impl PyModelBased {
     #[getter]
     fn evaluations(&self) -> u32 {
         self.inner.evaluations()
+    }
+
+    /// Consecutive told proposals made at the minimum radius that did not improve the best
+    /// (below `restart_after` when it is set).
+    #[getter]
+    fn stalled(&self) -> u32 {
+        self.inner.stalled()
+    }
+
+    /// The trust region's restarts so far (`restart_after`).
+    #[getter]
+    fn restarts(&self) -> u32 {
+        self.inner.restarts()
     }
 
     /// The number of parameters.

@@ -21,7 +21,8 @@
 //!   `ModelBased<CoordinateSearch<18>, 18>` (`propose` and `propose_bounded` with an
 //!   uncertainty weight, with an inner `Cmaes<18, 12>` and predictions that are sometimes
 //!   NaN or errors,
-//!   `tell` and `record` with wild costs, `set_reference`, the accessors);
+//!   `tell` and `record` with wild costs, restarting its trust region after 3 stalled
+//!   proposals, `set_reference`, the accessors);
 //! * the PIL firmware's path: frame decoding of arbitrary bytes, frame encoding, reading and
 //!   writing over an embedded-io port, the session and the AUV learner (`AuvLearner` with
 //!   `CoordinateSearch<18>`, with `Sracos<18>` and with `LineBo<18, 64>`),
@@ -534,6 +535,7 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
         inner_evaluations: black_box(24),
         margin: black_box(0.5),
         uncertainty_weight: black_box(0.5),
+        restart_after: black_box(3),
         ..ModelBasedConfig::DEFAULT
     };
     let Ok(mut learner) = ModelBased::try_new(bounds, fallback, config) else {
@@ -609,6 +611,8 @@ fn model_layer(rng: &mut Rng, bounds: Bounds<N>) -> bool {
         black_box((learner.best(), learner.pending(), learner.radius()));
         black_box((
             learner.evaluations(),
+            learner.stalled(),
+            learner.restarts(),
             learner.fallback().best(),
             learner.config(),
         ));
