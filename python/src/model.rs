@@ -17,7 +17,8 @@
 //! (the package's tests check both against the Rust reference).
 
 use ctrl_adapt::model::{
-    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Proposal, RlsModel, Source, rollout,
+    AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Prediction, Proposal, RlsModel, Source,
+    rollout,
 };
 use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Optimizer};
 use ctrl_adapt::record::{self, Persistent, RecordError};
@@ -403,8 +404,9 @@ impl Search {
     }
 }
 
-/// The model's cost of θ; `Err` when it cannot say.
-pub type Predict<'a> = dyn FnMut(&[f32]) -> Result<f32, Error> + 'a;
+/// The model's cost of θ and its uncertainty about θ (0 for a point prediction); `Err` when
+/// it cannot say.
+pub type Predict<'a> = dyn FnMut(&[f32]) -> Result<Prediction, Error> + 'a;
 
 /// A proposal as plain values: θ, and the model's prediction when the model proposed it
 /// (`None` from the fallback).
@@ -416,7 +418,8 @@ pub trait DynLearner: Send + Sync {
     fn dimension(&self) -> usize;
     /// The fallback's name.
     fn fallback(&self) -> &'static str;
-    /// `ModelBased::propose` with `inner` as the inner search.
+    /// `ModelBased::propose_bounded` with `inner` as the inner search (with point
+    /// predictions and any `uncertainty_weight`, or with a zero weight, `ModelBased::propose`).
     fn propose(
         &mut self,
         rng: &mut Xoshiro128PlusPlus,
@@ -499,12 +502,12 @@ where
     ) -> Result<Proposed, Error> {
         let mut predict = |theta: &Vector<N>| predict(theta.as_slice());
         let proposal = match inner {
-            Search::Coordinate(c) => self.0.propose(
+            Search::Coordinate(c) => self.0.propose_bounded(
                 rng,
                 |b, start| CoordinateSearch::try_new(b, start, c),
                 &mut predict,
             ),
-            Search::Cmaes(c) => self.0.propose(
+            Search::Cmaes(c) => self.0.propose_bounded(
                 rng,
                 |b, start| Cmaes::<N, L>::try_new(b, start, c),
                 &mut predict,

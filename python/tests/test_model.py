@@ -360,3 +360,45 @@ def test_restart_after_restarts_a_stalled_trust_region_and_round_trips():
     for bad in (-1, 1.5, "3"):
         with pytest.raises(ModelError):
             ModelBased(-np.ones(2), np.ones(2), restart_after=bad)
+
+
+def test_a_cost_and_uncertainty_pair_bounds_the_search():
+    """``predict`` may return ``(cost, uncertainty)``: with ``uncertainty_weight`` 0 the pair
+    is the cost alone (the same proposals, bit for bit, as returning the float); with a
+    weight, the search and the screen use cost + k_u × uncertainty, so a model that promises
+    much where it is unsure proposes where it is sure instead (the firmware's
+    ``propose_bounded``). A return value of neither form raises a TypeError and changes
+    nothing."""
+    def promise(t):
+        # The bowl, promised 1 lower for θ₀ > 0.05, where the model has no data (the first
+        # trust box is ±0.15 around θ = 0).
+        unsure = float(t[0]) > 0.05
+        return float(bowl(t)) - (1.0 if unsure else 0.0), (10.0 if unsure else 0.0)
+
+    point, paired = learner("coordinate", 5), learner("coordinate", 5)
+    for _ in range(4):
+        a = point.propose(lambda t: promise(t)[0])
+        b = paired.propose(promise)
+        assert bits(a[0]) == bits(b[0]) and a[1:] == b[1:]
+        point.tell(float(bowl(a[0])))
+        paired.tell(float(bowl(b[0])))
+    assert point.save() == paired.save()
+
+    def bounded(weight):
+        l = ModelBased(-np.ones(3), np.ones(3), "coordinate", "cmaes", seed=5, margin=0.1,
+                       inner_evaluations=60, inner_config={"max_evaluations": 60},
+                       uncertainty_weight=weight)
+        l.record(np.zeros(3), float(bowl(np.zeros(3))))
+        l.set_reference(float(bowl(np.zeros(3))))
+        return l
+
+    greedy, careful = bounded(0.0), bounded(1.0)
+    theta, source, _ = greedy.propose(promise)
+    assert source == "model" and theta[0] > 0.05  # lured where the model is unsure
+    theta, source, _ = careful.propose(promise)
+    assert source == "model" and theta[0] <= 0.05
+    careful.tell(float(bowl(theta)))
+    before = careful.save()
+    with pytest.raises(TypeError, match="pair"):
+        careful.propose(lambda t: (1.0, 2.0, 3.0))
+    assert careful.save() == before and careful.pending is None

@@ -5,7 +5,7 @@ use super::*;
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyFloat, PyList};
 use rand_core::SeedableRng;
@@ -352,16 +352,30 @@ impl PyRlsModel {
 /// `inner` each `"coordinate"` or `"cmaes"`, their configurations dicts of the Rust
 /// configurations' fields (`CoordinateConfig`, `CmaesConfig`); `**config` fields of
 /// `ModelBasedConfig` (`initial_radius`, `min_radius`, `max_radius`, `grow`, `shrink`,
-/// `margin`, `inner_evaluations`, `error_weight`, `initial_error`, `restart_after`, and
-/// `uncertainty_weight`, which has no effect here: `propose` takes point predictions);
-/// `start` the fallback's θ⁰ (the box's centre by default). Raises `ModelError` (a `ValueError`) for an unknown
-/// name or field, a value out of range, mismatched lengths. See `ctrl_adapt.model` for an
-/// example.
+/// `margin`, `inner_evaluations`, `error_weight`, `initial_error`, `uncertainty_weight`
+/// (used when `predict` returns a `(cost, uncertainty)` pair: see `propose`),
+/// `restart_after`); `start` the fallback's θ⁰ (the box's centre by default). Raises
+/// `ModelError` (a `ValueError`) for an unknown name or field, a value out of range,
+/// mismatched lengths. See `ctrl_adapt.model` for an example.
 #[pyclass(module = "ctrl_adapt._native", name = "ModelBased")]
 pub struct PyModelBased {
     inner: Box<dyn DynLearner>,
     search: Search,
     rng: Xoshiro128PlusPlus,
+}
+
+/// What a `predict` callable returned, as (cost, uncertainty): a float (a point prediction,
+/// uncertainty 0) or a `(cost, uncertainty)` pair.
+fn prediction_of(value: &Bound<'_, PyAny>) -> PyResult<(f64, f64)> {
+    if let Ok(cost) = value.extract::<f64>() {
+        return Ok((cost, 0.0));
+    }
+    value.extract::<(f64, f64)>().map_err(|_| {
+        PyTypeError::new_err(
+            "predict must return a float (the predicted cost) or a (cost, uncertainty) pair \
+             of floats",
+        )
+    })
 }
 
 /// A proposal as Python receives it: `(theta, source, predicted)`.
@@ -417,9 +431,12 @@ impl PyModelBased {
     /// `(theta, source, predicted)`: the θ of the next real episode, `source` `"model"`
     /// (with its predicted cost) or `"fallback"` (`predicted` None). `predict(theta)` is the
     /// model's cost of θ (a float; `nan` or `inf` where the model cannot say: ranked worse
-    /// than every prediction seen). Returns the pending proposal again until it is told.
+    /// than every prediction seen), or a `(cost, uncertainty)` pair: with the
+    /// `uncertainty_weight` k_u of the configuration, the inner search minimises and the
+    /// screen judges cost + k_u × uncertainty (the firmware's `propose_bounded`; a pair is
+    /// the cost alone when k_u is 0). Returns the pending proposal again until it is told.
     ///
-    /// An exception raised inside `predict`, or a value that is not a number, stops the
+    /// An exception raised inside `predict`, or a value that is neither, stops the
     /// proposal: the learner and its RNG are left as before the call and the exception
     /// propagates. Raises `ModelError` when the fallback has stopped and the model's
     /// candidate did not pass (nothing changes).
@@ -431,15 +448,18 @@ impl PyModelBased {
         let before = self.inner.boxed_clone();
         let rng = self.rng.clone();
         let mut raised: Option<PyErr> = None;
-        let mut call = |theta: &[f32]| -> Result<f32, Error> {
+        let mut call = |theta: &[f32]| -> Result<Prediction, Error> {
             if raised.is_some() {
                 return Err(Error::NonFinite("prediction"));
             }
-            let cost = predict
+            let value = predict
                 .call1((crate::array(py, theta),))
-                .and_then(|c| c.extract::<f64>());
-            match cost {
-                Ok(c) => Ok(crate::narrow(c)),
+                .and_then(|v| prediction_of(&v));
+            match value {
+                Ok((c, u)) => Ok(Prediction {
+                    cost: crate::narrow(c),
+                    uncertainty: crate::narrow(u),
+                }),
                 Err(e) => {
                     raised = Some(e);
                     Err(Error::NonFinite("prediction"))
