@@ -34,6 +34,9 @@ pub enum Error {
     /// Candidates are in flight: the sequential `ask`/`tell` wait until every ticket is
     /// reported.
     InFlight,
+    /// Finite input whose computation would overflow f32 (named: `"regressors"` for a model
+    /// tick whose regressors or error are too large to fit); nothing was changed.
+    Overflow(&'static str),
 }
 
 impl fmt::Display for Error {
@@ -53,6 +56,9 @@ impl fmt::Display for Error {
             Self::UnknownTicket => f.write_str("unknown ticket: not outstanding"),
             Self::InFlight => {
                 f.write_str("candidates are in flight: report or cancel their tickets first")
+            }
+            Self::Overflow(what) => {
+                write!(f, "{what} too large: the computation would overflow f32")
             }
         }
     }

@@ -56,10 +56,10 @@ use serde::de::DeserializeOwned;
 use crate::error::Error;
 
 /// The version of the record layout and of every type's encoding. It changes whenever a
-/// saved field is added, removed or reordered, or changes its meaning (7: `ModelBased`
-/// saves its configuration's `restart_after`, its stall count and its restarts): a record
-/// of another version is refused.
-pub const FORMAT_VERSION: u16 = 7;
+/// saved field is added, removed or reordered, or changes its meaning (8: `RlsModel` saves
+/// its covariance as the factors U and D of P = U·D·Uᵀ, without a reset count): a record of
+/// another version is refused.
+pub const FORMAT_VERSION: u16 = 8;
 
 /// The most words a [`Shape`] holds (a compile-time error beyond).
 pub const SHAPE_CAPACITY: usize = 32;
@@ -373,8 +373,8 @@ mod shapes {
     impl<const S: usize, const A: usize, const R: usize> Persistent for RlsModel<S, A, R> {
         const SHAPE: Shape = Shape::new(*b"RLSM", &[S, A, R]);
 
-        /// The configuration, finite weights and errors, and a finite symmetric covariance
-        /// with its diagonal positive and within the bound ([`RlsModel::validate`]).
+        /// The configuration, finite weights and errors, and covariance factors that prove P
+        /// positive definite with its diagonal within the bound ([`RlsModel::validate`]).
         fn validate(&self) -> Result<(), Error> {
             RlsModel::validate(self)
         }
@@ -1199,8 +1199,9 @@ mod tests {
     }
 
     /// Checks: a decoded model or learner whose checksum is right but whose content is not
-    /// is refused naming the field: a NaN or too large variance, an asymmetric covariance,
-    /// a radius beyond its bounds, a model candidate with a NaN prediction.
+    /// is refused naming the field: a NaN or too large variance, covariance factors that are
+    /// not a positive definite P within its bound, a radius beyond its bounds, a model
+    /// candidate with a NaN prediction.
     #[test]
     fn decoded_models_and_learners_are_validated() {
         let mut model = RlsModel::<2, 1, 4>::try_new(ModelConfig::DEFAULT).unwrap();
@@ -1224,9 +1225,18 @@ mod tests {
         }
         let record = bytes(&model);
         assert_eq!(load::<RlsModel<2, 1, 4>>(&record), Ok(model));
-        let off = model.covariance()[(0, 1)];
+        // The covariance is saved as its factors P = U·D·Uᵀ: a negative D, or an entry of U
+        // that takes P's diagonal past its bound, would not be a positive definite P within
+        // the bound.
+        let (factor, variances) = model.covariance_factors();
+        let d = variances[0];
         assert_eq!(
-            refused(forge_value(&record, off, 0, off + 1.0)),
+            refused(forge_value(&record, d, 0, -d)),
+            RecordError::Invalid(Error::InvalidParameter("covariance"))
+        );
+        let u = factor[(0, 1)];
+        assert_eq!(
+            refused(forge_value(&record, u, 0, 1e30)),
             RecordError::Invalid(Error::InvalidParameter("covariance"))
         );
 
@@ -1490,7 +1500,7 @@ mod tests {
         use alloc::string::ToString;
         assert_eq!(
             RecordError::Version { found: 1 }.to_string(),
-            "the record has format version 1, this build reads 7"
+            "the record has format version 1, this build reads 8"
         );
     }
 

@@ -462,36 +462,77 @@ pub fn model_based_mid_run(mut learner: ForgedModelBased, steps: u64) -> Result<
 /// affine regressors.
 pub type ForgedRlsModel = RlsModel<2, 1, 4>;
 
-/// A damped linear plant x' = A·x + B·u + c with a little noise, and a command drawn in
-/// [−2, 2]; one tick in 50 non-finite and one in 50 huge (about 10³⁰).
-fn plant_tick(x: &Vector<2>, rng: &mut impl RngCore) -> (Vector<2>, Vector<1>, Vector<2>) {
-    let u = Vector::<1>::new((unit(rng) - 0.5) * 4.0);
+/// How [`plant_tick`] draws its command: uniformly in [−2, 2], a square wave of ±1 switched
+/// every 1,000 ticks, or a constant 0.3 with a 10⁻⁶ wobble (the two that lost the plain
+/// form's positive definiteness under forgetting).
+#[derive(Clone, Copy)]
+enum Command {
+    Random,
+    Square,
+    NearlyConstant,
+}
+
+impl Command {
+    fn draw(rng: &mut impl RngCore) -> Self {
+        match rng.next_u32() % 3 {
+            0 => Self::Random,
+            1 => Self::Square,
+            _ => Self::NearlyConstant,
+        }
+    }
+
+    fn at(self, tick: u64, rng: &mut impl RngCore) -> f32 {
+        match self {
+            Self::Random => (unit(rng) - 0.5) * 4.0,
+            Self::Square if (tick / 1000).is_multiple_of(2) => 1.0,
+            Self::Square => -1.0,
+            Self::NearlyConstant => 0.3 + 1e-6 * (unit(rng) - 0.5),
+        }
+    }
+}
+
+/// A damped linear plant x' = A·x + B·u + c with a little noise under `command`; one tick in
+/// 50 non-finite and one in 50 huge (about 10³⁰). The last value says whether the tick is an
+/// ordinary one (finite and of ordinary size), which no model may refuse.
+fn plant_tick(
+    x: &Vector<2>,
+    command: Command,
+    tick: u64,
+    rng: &mut impl RngCore,
+) -> (Vector<2>, Vector<1>, Vector<2>, bool) {
+    let u = Vector::<1>::new(command.at(tick, rng));
     let next = Vector::<2>::new(
         0.9 * x[0] + 0.1 * x[1] + 0.01 * (unit(rng) - 0.5),
         -0.2 * x[0] + 0.8 * x[1] + 0.5 * u[0] + 0.1 + 0.01 * (unit(rng) - 0.5),
     );
     match rng.next_u32() % 50 {
-        0 => (*x, u, Vector::repeat(f32::NAN)),
-        1 => (*x * 1e30, u, next),
-        _ => (*x, u, next),
+        0 => (*x, u, Vector::repeat(f32::NAN), false),
+        1 => (*x * 1e30, u, next, false),
+        _ => (*x, u, next, true),
     }
 }
 
 /// `ticks` ticks of a damped linear plant with two states and one command fitted by
-/// `model` (one tick in 50 non-finite, one in 50 huge), from a random state (the plant's
-/// state reset when it leaves [−10, 10]²): each fit must succeed or be refused as
-/// non-finite, and leave a valid state; no prediction may panic. Returns the ticks run.
+/// `model` (one tick in 50 non-finite, one in 50 huge; the command random, a square wave or
+/// nearly constant, drawn per run), from a random state (the plant's state reset when it
+/// leaves [−10, 10]²): an ordinary tick must be fitted, the others refused as non-finite or
+/// as an overflow, every state valid; no prediction may panic. Returns the ticks run.
 pub fn run_rls_model(
     mut model: ForgedRlsModel,
     rng: &mut DriverRng,
     ticks: u64,
 ) -> Result<u64, String> {
     let mut x = Vector::<2>::from_fn(|_, _| (unit(rng) - 0.5) * 4.0);
+    let command = Command::draw(rng);
     for tick in 0..ticks {
-        let (state, command, next) = plant_tick(&x, rng);
+        let (state, command, next, ordinary) = plant_tick(&x, command, tick, rng);
         let _ = model.predict(&Affine, &state, &command);
         match model.update(&Affine, &state, &command, &next) {
-            Ok(_) | Err(Error::NonFinite(_)) => {}
+            Ok(_) => {}
+            Err(e) if ordinary => {
+                return Err(format!("tick {tick}: an ordinary tick refused: {e}"));
+            }
+            Err(Error::NonFinite(_) | Error::Overflow(_)) => {}
             Err(e) => return Err(format!("tick {tick}: {e}")),
         }
         model
@@ -512,8 +553,9 @@ pub fn rls_model_mid_run(mut model: ForgedRlsModel, ticks: u64) -> Result<Vec<u8
     let mut rng = DriverRng::seed_from_u64(0);
     round_trip(&model, "fresh")?;
     let mut x = Vector::<2>::zeros();
+    let command = Command::draw(&mut rng);
     for tick in 0..ticks {
-        let (state, command, next) = plant_tick(&x, &mut rng);
+        let (state, command, next, _) = plant_tick(&x, command, tick, &mut rng);
         let _ = model.update(&Affine, &state, &command, &next);
         round_trip(&model, &format!("after tick {tick}"))?;
         if next.iter().all(|v| v.is_finite() && v.abs() <= 10.0) {

@@ -790,16 +790,33 @@ fn forged_model_based() {
 }
 
 /// The plant model alone: each loaded forgery fits [`FORGED_STEPS`] ticks of a linear
-/// plant (non-finite and huge ticks among them) and must stay a valid state.
+/// plant (non-finite and huge ticks among them; a random, square-wave or nearly constant
+/// command) and must fit every ordinary tick and stay a valid state.
 #[test]
 fn forged_rls_model() {
     use ctrl_adapt::model::{ModelConfig, RlsModel};
-    let model: ForgedRlsModel = RlsModel::try_new(ModelConfig::default()).unwrap();
-    for &cut in CUTS {
-        let result = rls_model_mid_run(model, cut as u64).map(|record| {
-            forgery::sweep::<ForgedRlsModel>(&record, |m, rng| run_rls_model(m, rng, FORGED_STEPS))
-        });
-        forged_report(&format!("RlsModel<2, 1, 4> after {cut} ticks"), result);
+    // The default, and a fast-forgetting model whose running error is the last tick's.
+    let fast = ModelConfig {
+        forgetting: 0.99,
+        error_window: 1,
+        ..ModelConfig::default()
+    };
+    for config in [ModelConfig::default(), fast] {
+        let model: ForgedRlsModel = RlsModel::try_new(config).unwrap();
+        for &cut in CUTS {
+            let result = rls_model_mid_run(model, cut as u64).map(|record| {
+                forgery::sweep::<ForgedRlsModel>(&record, |m, rng| {
+                    run_rls_model(m, rng, FORGED_STEPS)
+                })
+            });
+            forged_report(
+                &format!(
+                    "RlsModel<2, 1, 4> (forgetting {}, error window {}) after {cut} ticks",
+                    config.forgetting, config.error_window
+                ),
+                result,
+            );
+        }
     }
 }
 
