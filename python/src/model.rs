@@ -16,6 +16,7 @@
 //! and for the same ticks, seed and predictions they compute the same numbers bit for bit
 //! (the package's tests check both against the Rust reference).
 
+use core::cell::Cell;
 use ctrl_adapt::model::{
     AffineWith, ModelBased, ModelBasedConfig, ModelConfig, Prediction, Proposal, RlsModel, Source,
     rollout,
@@ -23,6 +24,7 @@ use ctrl_adapt::model::{
 use ctrl_adapt::optimizer::{Cmaes, CmaesConfig, CoordinateConfig, CoordinateSearch, Optimizer};
 use ctrl_adapt::record::{self, Persistent, RecordError};
 use ctrl_adapt::{Bounds, Error, Vector};
+use rand_core::RngCore;
 use rand_xoshiro::Xoshiro128PlusPlus;
 
 use crate::dispatch::{configured, record_of};
@@ -42,8 +44,55 @@ pub const MAX_LEARNER_DIMENSION: usize = 8;
 // ---------------------------------------------------------------------------------------
 // RlsModel at any compiled sizes.
 
-/// A command for one tick, from the caller's policy; `Err` stops the rollout.
+/// A command for one tick, from the caller's policy; `Err` stops the rollout at once (the
+/// policy is not called again).
 pub type Policy<'a> = dyn FnMut(u32, &[f32]) -> Result<Vec<f32>, String> + 'a;
+
+/// Why a rollout returned no states.
+#[derive(Debug)]
+pub enum RolloutError {
+    /// The model has no rollout, or the policy failed (the message).
+    Refused(String),
+    /// The states do not fit in memory (an allocation was refused): nothing is kept.
+    Memory,
+}
+
+/// How a rollout that returned its states ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rolled {
+    /// Every tick was predicted: `ticks + 1` rows.
+    Finished,
+    /// A prediction left the finite numbers (or the start was not finite): the rows up to
+    /// the last finite state, the rest of the rollout unknown.
+    Diverged,
+}
+
+/// The values of a rollout's `ticks + 1` rows of `s` states (`None` beyond `usize`).
+pub fn rollout_values(ticks: u32, s: usize) -> Option<usize> {
+    usize::try_from(ticks).ok()?.checked_add(1)?.checked_mul(s)
+}
+
+/// The values a rollout's row buffer first holds (32 KiB as `f64`).
+const FIRST_ROWS_VALUES: usize = 4096;
+
+/// `row` appended to `out` as `f64`, `out` grown geometrically with a fallible allocation
+/// (to at most `total` values, the whole rollout), so that a rollout too large for memory
+/// is [`RolloutError::Memory`], not an abort, and memory grows with the ticks rolled out
+/// rather than with the ticks asked for.
+fn push_row(out: &mut Vec<f64>, row: &[f32], total: usize) -> Result<(), RolloutError> {
+    if out.capacity() - out.len() < row.len() {
+        let want = out
+            .capacity()
+            .saturating_mul(2)
+            .max(FIRST_ROWS_VALUES)
+            .min(total);
+        let more = want.saturating_sub(out.len()).max(row.len());
+        out.try_reserve_exact(more)
+            .map_err(|_| RolloutError::Memory)?;
+    }
+    out.extend(row.iter().map(|&v| f64::from(v)));
+    Ok(())
+}
 
 /// An `RlsModel<S, A, R>` of any compiled sizes. Slices are checked for length by the
 /// caller ([`DynModel::sizes`]).
@@ -60,22 +109,24 @@ pub trait DynModel: Send + Sync {
     ) -> Result<Vec<f32>, Error>;
     /// `RlsModel::predict`.
     fn predict(&self, state: &[f32], action: &[f32], extra: &[f32]) -> Vec<f32>;
-    /// The states of a rollout from `start` under `policy` (E = 0): `ticks + 1` rows, NaN
-    /// from the first prediction that leaves the finite numbers.
+    /// The states of a rollout from `start` under `policy` (E = 0), appended to `out` row
+    /// by row (S values each, as `f64`): `ticks + 1` rows when [`Rolled::Finished`], the
+    /// rows up to the last finite state when a prediction leaves the finite numbers
+    /// ([`Rolled::Diverged`]). The first failure of `policy` stops the rollout; `out`
+    /// grows with fallible allocations ([`RolloutError::Memory`] when one is refused).
     fn rollout(
         &self,
         start: &[f32],
         ticks: u32,
         policy: &mut Policy<'_>,
-    ) -> Result<Vec<Vec<f32>>, String>;
+        out: &mut Vec<f64>,
+    ) -> Result<Rolled, RolloutError>;
     /// `RlsModel::episode_error` (E = 0).
     fn episode_error(&self, states: &[Vec<f32>], actions: &[Vec<f32>]) -> Result<Vec<f32>, Error>;
     /// `RlsModel::one_step_error`.
     fn one_step_error(&self) -> Vec<f32>;
     /// `RlsModel::ticks`.
     fn ticks(&self) -> u32;
-    /// `RlsModel::covariance_resets`.
-    fn covariance_resets(&self) -> u32;
     /// W, R rows of S.
     fn weights(&self) -> Vec<Vec<f32>>;
     /// P, R rows of R.
@@ -140,46 +191,31 @@ impl<const S: usize, const A: usize, const R: usize, const E: usize> DynModel
         start: &[f32],
         ticks: u32,
         policy: &mut Policy<'_>,
-    ) -> Result<Vec<Vec<f32>>, String> {
+        out: &mut Vec<f64>,
+    ) -> Result<Rolled, RolloutError> {
         if E > 0 {
-            return Err("a rollout needs the caller's extra regressors".into());
+            return Err(RolloutError::Refused(
+                "a rollout needs the caller's extra regressors".into(),
+            ));
         }
-        let mut states = vec![start.to_vec()];
-        let mut failure = None;
-        let end = rollout(
-            &self.0,
-            &no_extra::<S, A, E>(),
-            &Vector::<S>::from_column_slice(start),
-            ticks,
-            |k, x| {
-                // The states seen so far are the rows: record each before its command.
-                if k > 0 {
-                    states.push(x.as_slice().to_vec());
-                }
-                if failure.is_some() {
-                    return Vector::<A>::zeros();
-                }
-                match policy(k, x.as_slice()) {
-                    Ok(u) => Vector::<A>::from_column_slice(&u),
-                    Err(why) => {
-                        failure = Some(why);
-                        Vector::<A>::zeros()
-                    }
-                }
-            },
-        );
-        if let Some(why) = failure {
-            return Err(why);
+        let total = rollout_values(ticks, S).ok_or(RolloutError::Memory)?;
+        let map = no_extra::<S, A, E>();
+        let mut state = Vector::<S>::from_column_slice(start);
+        push_row(out, state.as_slice(), total)?;
+        for k in 0..ticks {
+            let command = policy(k, state.as_slice()).map_err(RolloutError::Refused)?;
+            let command = Vector::<A>::from_column_slice(&command);
+            // The library's rollout one tick at a time (the same predictions and checks as
+            // one call over every tick), so that the policy's failure stops it at once.
+            state = match rollout(&self.0, &map, &state, 1, |_, _| command) {
+                Ok(next) => next,
+                // The prediction left the finite numbers (or the start is not finite): the
+                // rest of the rollout is unknown.
+                Err(_) => return Ok(Rolled::Diverged),
+            };
+            push_row(out, state.as_slice(), total)?;
         }
-        match end {
-            Ok(x) if ticks > 0 => states.push(x.as_slice().to_vec()),
-            Ok(_) => {}
-            // The prediction left the finite numbers (or the start is not finite): the
-            // rest of the rollout is unknown.
-            Err(_) => {}
-        }
-        states.resize(ticks as usize + 1, vec![f32::NAN; S]);
-        Ok(states)
+        Ok(Rolled::Finished)
     }
 
     fn episode_error(&self, states: &[Vec<f32>], actions: &[Vec<f32>]) -> Result<Vec<f32>, Error> {
@@ -207,16 +243,13 @@ impl<const S: usize, const A: usize, const R: usize, const E: usize> DynModel
         self.0.ticks()
     }
 
-    fn covariance_resets(&self) -> u32 {
-        self.0.covariance_resets()
-    }
-
     fn weights(&self) -> Vec<Vec<f32>> {
         rows(R, S, |i, j| self.0.weights()[(i, j)])
     }
 
     fn covariance(&self) -> Vec<Vec<f32>> {
-        rows(R, R, |i, j| self.0.covariance()[(i, j)])
+        let p = self.0.covariance();
+        rows(R, R, |i, j| p[(i, j)])
     }
 
     fn config(&self) -> ModelConfig {
@@ -404,8 +437,9 @@ impl Search {
     }
 }
 
-/// The model's cost of θ and its uncertainty about θ (0 for a point prediction); `Err` when
-/// it cannot say.
+/// The model's cost of θ and its uncertainty about θ (0 for a point prediction; a
+/// non-finite cost where the model cannot say); `Err` stops the proposal (the caller's
+/// prediction failed): it is not called again and the inner search asks no more.
 pub type Predict<'a> = dyn FnMut(&[f32]) -> Result<Prediction, Error> + 'a;
 
 /// A proposal as plain values: θ, and the model's prediction when the model proposed it
@@ -420,6 +454,8 @@ pub trait DynLearner: Send + Sync {
     fn fallback(&self) -> &'static str;
     /// `ModelBased::propose_bounded` with `inner` as the inner search (with point
     /// predictions and any `uncertainty_weight`, or with a zero weight, `ModelBased::propose`).
+    /// After an `Err` from `predict` the inner search stops: the learner is then in an
+    /// unspecified state, for the caller to restore.
     fn propose(
         &mut self,
         rng: &mut Xoshiro128PlusPlus,
@@ -470,6 +506,46 @@ impl<const N: usize, const L: usize> Named for Cmaes<N, L> {
     const NAME: &'static str = "cmaes";
 }
 
+/// An inner search that stops (asks [`Error::Stopped`]) once `stopped` is set, and is
+/// otherwise `search` itself.
+struct Stoppable<'a, O> {
+    search: O,
+    stopped: &'a Cell<bool>,
+}
+
+impl<const N: usize, O: Optimizer<N>> Optimizer<N> for Stoppable<'_, O> {
+    fn ask<R: RngCore + ?Sized>(&mut self, rng: &mut R) -> Result<Vector<N>, Error> {
+        if self.stopped.get() {
+            return Err(Error::Stopped);
+        }
+        self.search.ask(rng)
+    }
+
+    fn tell(&mut self, cost: f32) -> Result<(), Error> {
+        self.search.tell(cost)
+    }
+
+    fn best(&self) -> Option<ctrl_adapt::optimizer::Best<N>> {
+        self.search.best()
+    }
+
+    fn pending(&self) -> Option<&Vector<N>> {
+        self.search.pending()
+    }
+
+    fn evaluations(&self) -> u32 {
+        self.search.evaluations()
+    }
+
+    fn status(&self) -> ctrl_adapt::optimizer::Status {
+        self.search.status()
+    }
+
+    fn bounds(&self) -> &Bounds<N> {
+        self.search.bounds()
+    }
+}
+
 /// `ModelBased<F, N>` beside the CMA-ES population `L` its inner CMA-ES uses.
 #[derive(Clone)]
 struct Learner<F, const N: usize, const L: usize>(ModelBased<F, N>);
@@ -500,16 +576,36 @@ where
         inner: Search,
         predict: &mut Predict<'_>,
     ) -> Result<Proposed, Error> {
-        let mut predict = |theta: &Vector<N>| predict(theta.as_slice());
+        // The first failure of `predict` stops the inner search (its remaining
+        // `inner_evaluations` would each be a refused prediction) and further predictions.
+        let stopped = Cell::new(false);
+        let mut predict = |theta: &Vector<N>| {
+            if stopped.get() {
+                return Err(Error::Stopped);
+            }
+            let p = predict(theta.as_slice());
+            stopped.set(p.is_err());
+            p
+        };
         let proposal = match inner {
             Search::Coordinate(c) => self.0.propose_bounded(
                 rng,
-                |b, start| CoordinateSearch::try_new(b, start, c),
+                |b, start| {
+                    CoordinateSearch::try_new(b, start, c).map(|search| Stoppable {
+                        search,
+                        stopped: &stopped,
+                    })
+                },
                 &mut predict,
             ),
             Search::Cmaes(c) => self.0.propose_bounded(
                 rng,
-                |b, start| Cmaes::<N, L>::try_new(b, start, c),
+                |b, start| {
+                    Cmaes::<N, L>::try_new(b, start, c).map(|search| Stoppable {
+                        search,
+                        stopped: &stopped,
+                    })
+                },
                 &mut predict,
             ),
         }?;

@@ -137,6 +137,41 @@ def test_a_diverging_rollout_is_nan_not_an_error():
     assert np.isfinite(states[0, 0]) and np.isnan(states[-1, 0])
 
 
+def test_a_rollout_is_the_chain_of_predictions():
+    """The rows are the model's predictions chained under the policy, bit for bit (as the
+    library's `rollout` computes them); a diverging rollout's finite rows, then NaN."""
+    affine, _ = fitted(300)
+
+    def policy(k, s):
+        return [float(F32(-0.8) * F32(s[0]) + F32(0.3) * F32(np.sin(F32(0.2) * F32(k))))]
+
+    states = affine.rollout([0.4, -0.1], 64, policy, with_tick=True)
+    assert states.shape == (65, 2) and states.dtype == np.float64
+    x, chain = np.array([0.4, -0.1]), []
+    for k in range(65):
+        chain.append(bits(x))
+        x = affine.predict(x, policy(k, x))
+    assert [bits(row) for row in states] == chain
+    calls = []
+
+    def push(s):
+        calls.append(1)
+        return [3e38]
+
+    # The commands push the state past float32 within a few ticks: the finite rows are
+    # the chained predictions, the rows from the first non-finite prediction on NaN, and
+    # the policy is not called after it.
+    diverged = affine.rollout([0.4, -0.1], 100, push)
+    finite = int(np.isfinite(diverged).all(axis=1).sum())
+    assert diverged.shape == (101, 2) and 1 < finite < 100 and len(calls) == finite
+    assert np.isnan(diverged[finite:]).all()
+    x = np.array([0.4, -0.1])
+    for row in diverged[:finite]:
+        assert bits(row) == bits(x)
+        x = affine.predict(x, [3e38])
+    assert not np.isfinite(x).all()
+
+
 def test_model_records_round_trip_and_copies():
     affine, dragged = fitted(100)
     for m in (affine, dragged):
@@ -277,6 +312,26 @@ def test_an_exception_in_predict_changes_nothing(fallback):
     assert l.save() == before
     # RNG restored too: the next proposals are those of the untouched copy.
     assert drive(l, 3) == drive(twin, 3)
+
+
+@pytest.mark.parametrize("inner", ["coordinate", "cmaes"])
+def test_an_exception_in_predict_stops_the_inner_search_at_once(inner):
+    # 2³² − 1 inner evaluations and the smallest tolerances: the inner search ends at the
+    # first exception (it went on, its predictions refused, until it converged), `predict`
+    # called once.
+    l = ModelBased(-np.ones(2), np.ones(2), "coordinate", inner, seed=1,
+                   inner_evaluations=2**32 - 1,
+                   inner_config={"tolerance": 0.0 if inner == "cmaes" else 1e-30})
+    before = l.save()
+    calls = []
+
+    def failing(theta):
+        calls.append(1)
+        raise KeyError("predict")
+
+    with pytest.raises(KeyError, match="predict"):
+        l.propose(failing)
+    assert len(calls) == 1 and l.save() == before and l.pending is None
 
 
 def test_nan_predictions_fall_back_and_never_raise():

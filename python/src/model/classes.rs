@@ -5,7 +5,7 @@ use super::*;
 
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyFloat, PyList};
 use rand_core::SeedableRng;
@@ -46,6 +46,37 @@ fn floats(py: Python<'_>, values: &Bound<'_, PyAny>, name: &str, n: usize) -> Py
         )));
     }
     Ok(v)
+}
+
+/// How many ticks of a rollout, or predictions of a proposal, run between two checks for
+/// Ctrl-C.
+const SIGNAL_PERIOD: u32 = 1024;
+
+/// The `MemoryError` of a rollout whose `ticks + 1` rows of `s` states do not fit.
+fn rollout_memory(ticks: u32, s: usize) -> PyErr {
+    let rows = u64::from(ticks) + 1;
+    let bytes = u128::from(rows) * s as u128 * 8;
+    PyMemoryError::new_err(format!(
+        "rollout: ticks={ticks} needs {rows} rows of {s} states ({bytes} bytes as float64), \
+         more than this process can allocate: ask for fewer ticks"
+    ))
+}
+
+/// The rows of a diverged rollout after its last finite state, NaN: `values` filled to
+/// `ticks + 1` rows of `s` with one fallible allocation (`MemoryError` when refused), in
+/// chunks with a check for Ctrl-C between them.
+fn nan_rows(py: Python<'_>, values: &mut Vec<f64>, ticks: u32, s: usize) -> PyResult<()> {
+    const CHUNK: usize = 1 << 20;
+    let total = rollout_values(ticks, s).ok_or_else(|| rollout_memory(ticks, s))?;
+    values
+        .try_reserve_exact(total.saturating_sub(values.len()))
+        .map_err(|_| rollout_memory(ticks, s))?;
+    while values.len() < total {
+        let end = values.len() + (total - values.len()).min(CHUNK);
+        values.resize(end, f64::NAN);
+        py.check_signals()?;
+    }
+    Ok(())
 }
 
 fn matrix<'py>(
@@ -162,6 +193,12 @@ impl PyRlsModel {
     /// each tick's action `policy(state)` (`policy(k, state)` with `with_tick=True`). Rows
     /// after a prediction that leaves the finite numbers are NaN. Models with extra
     /// regressors have no rollout (their features are the caller's).
+    ///
+    /// An exception raised by `policy` (or an action of the wrong size) stops the rollout
+    /// at that tick and propagates; Ctrl-C interrupts a long rollout (`KeyboardInterrupt`,
+    /// checked every 1024 ticks even when the policy runs no Python code). The rows are
+    /// allocated as the rollout goes: a rollout whose rows do not fit in memory (as
+    /// float64) raises `MemoryError` naming `ticks`, not an abort.
     #[pyo3(signature = (start, ticks, policy, with_tick=false))]
     fn rollout<'py>(
         &self,
@@ -183,23 +220,41 @@ impl PyRlsModel {
         }
         let mut raised: Option<PyErr> = None;
         let mut step = |k: u32, x: &[f32]| -> Result<Vec<f32>, String> {
-            let state = crate::array(py, x);
-            let out = if with_tick {
-                policy.call1((k, state))
+            // Ctrl-C, seen even when the policy runs no Python bytecode (a NumPy ufunc, a
+            // builtin) or none at all for a while.
+            let signals = if k.is_multiple_of(SIGNAL_PERIOD) {
+                py.check_signals()
             } else {
-                policy.call1((state,))
+                Ok(())
             };
-            let u = out.and_then(|u| floats(py, &u, "the policy's action", a));
+            let u = signals
+                .and_then(|()| {
+                    let state = crate::array(py, x);
+                    if with_tick {
+                        policy.call1((k, state))
+                    } else {
+                        policy.call1((state,))
+                    }
+                })
+                .and_then(|u| floats(py, &u, "the policy's action", a));
             u.map_err(|err| {
                 let why = err.to_string();
                 raised = Some(err);
                 why
             })
         };
-        match self.inner.rollout(&x0, ticks, &mut step) {
-            Ok(states) => matrix(py, &states, s),
-            Err(why) => Err(raised.unwrap_or_else(|| model_error(why))),
+        let mut values = Vec::new();
+        match self.inner.rollout(&x0, ticks, &mut step, &mut values) {
+            Ok(Rolled::Finished) => {}
+            // The rows after the first non-finite prediction are unknown: NaN.
+            Ok(Rolled::Diverged) => nan_rows(py, &mut values, ticks, s)?,
+            Err(RolloutError::Refused(why)) => {
+                return Err(raised.unwrap_or_else(|| model_error(why)));
+            }
+            Err(RolloutError::Memory) => return Err(rollout_memory(ticks, s)),
         }
+        let rows = values.len() / s;
+        PyArray1::from_vec(py, values).reshape([rows, s])
     }
 
     /// The root-mean-square error per state dimension of an open-loop prediction of a
@@ -243,19 +298,14 @@ impl PyRlsModel {
         self.inner.ticks()
     }
 
-    /// How many times the covariance degenerated and was reset to the prior.
-    #[getter]
-    fn covariance_resets(&self) -> u32 {
-        self.inner.covariance_resets()
-    }
-
     /// W, R × S: the predicted increment is Wᵀ·z, z = [state, action, 1, features].
     #[getter]
     fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         matrix(py, &self.inner.weights(), self.inner.sizes().0)
     }
 
-    /// P, R × R: the weights' covariance up to the noise variance.
+    /// P, R × R: the weights' covariance up to the noise variance, computed from the factors
+    /// U·D·Uᵀ the model keeps (symmetric and positive definite by construction).
     #[getter]
     fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let p = self.inner.covariance();
@@ -437,9 +487,11 @@ impl PyModelBased {
     /// the cost alone when k_u is 0). Returns the pending proposal again until it is told.
     ///
     /// An exception raised inside `predict`, or a value that is neither, stops the
-    /// proposal: the learner and its RNG are left as before the call and the exception
-    /// propagates. Raises `ModelError` when the fallback has stopped and the model's
-    /// candidate did not pass (nothing changes).
+    /// proposal at once (`predict` is not called again): the learner and its RNG are left
+    /// as before the call and the exception propagates. Ctrl-C interrupts a long proposal
+    /// (`KeyboardInterrupt`, checked every 1024 predictions even when `predict` runs no
+    /// Python code) the same way. Raises `ModelError` when the fallback has stopped and the
+    /// model's candidate did not pass (nothing changes).
     fn propose<'py>(
         &mut self,
         py: Python<'py>,
@@ -448,12 +500,20 @@ impl PyModelBased {
         let before = self.inner.boxed_clone();
         let rng = self.rng.clone();
         let mut raised: Option<PyErr> = None;
+        let mut calls: u32 = 0;
         let mut call = |theta: &[f32]| -> Result<Prediction, Error> {
             if raised.is_some() {
                 return Err(Error::NonFinite("prediction"));
             }
-            let value = predict
-                .call1((crate::array(py, theta),))
+            // Ctrl-C, seen even when `predict` runs no Python bytecode.
+            let signals = if calls.is_multiple_of(SIGNAL_PERIOD) {
+                py.check_signals()
+            } else {
+                Ok(())
+            };
+            calls = calls.wrapping_add(1);
+            let value = signals
+                .and_then(|()| predict.call1((crate::array(py, theta),)))
                 .and_then(|v| prediction_of(&v));
             match value {
                 Ok((c, u)) => Ok(Prediction {
