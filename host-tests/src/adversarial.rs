@@ -1169,7 +1169,8 @@ type GuardedDriverAdapter<O> =
     Adapter<O, DriverController, LastObservation, 2, 2, 1, ctrl_adapt::controller::Guard<2, 8>>;
 
 /// Drives adapters with a runtime guard (random limits on a state coordinate and on a
-/// signal, random hysteresis and margins, NaN and infinities included) around a coordinate
+/// signal, random hysteresis and margins, NaN and infinities included; one in eight with no
+/// margin left at the last tick and margins that overflow f32) around a coordinate
 /// search: episodes in every mode, ticks with adversarial states, signals (short ones
 /// included) and running costs, aborts, and save/load of the record mid-episode. Checks,
 /// besides panic freedom:
@@ -1178,8 +1179,11 @@ type GuardedDriverAdapter<O> =
 /// * a trip only in a learning or deployed episode, at a tick it ran; from that tick on,
 ///   every action the nominal action (or the safe action, zero, when that is not finite);
 /// * a limit trip exactly at the first tick ending `limit_ticks` consecutive ticks beyond
-///   some limit, unless the envelope tripped earlier; `ticks_beyond_limits` the ticks
-///   beyond a limit;
+///   some limit, unless the envelope tripped earlier; an envelope trip exactly at the first
+///   tick ending `envelope_ticks` consecutive ticks whose running cost is not at most the
+///   guard's threshold (NaN is above), unless a limit trip was due by then; no trip when
+///   neither was due; the threshold never NaN; `ticks_beyond_limits` the ticks beyond a
+///   limit;
 /// * a tripped learning episode told [`tripped_cost`], above the failure cost; the guard's
 ///   counters the sums of the reports; the record loads back equal.
 ///
@@ -1219,7 +1223,7 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
                 },
             }
         };
-        let config = GuardConfig {
+        let mut config = GuardConfig {
             limits: [limit(&mut rng, 0), limit(&mut rng, 1)],
             limit_ticks: count(&mut rng, 2).min(5),
             envelope_ticks: count(&mut rng, 2).min(5),
@@ -1228,6 +1232,14 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
             margin_taper: field(&mut rng, 0.5),
             tripped_cost_span: field(&mut rng, 10.0),
         };
+        if rng.next_u32().is_multiple_of(8) {
+            // No margin at the last tick, and margins that overflow f32 on a large
+            // envelope (weight 0 times an infinite margin was a NaN threshold).
+            const HUGE: [f32; 4] = [10.0, 1e30, f32::MAX, 0.0];
+            config.margin_taper = 0.0;
+            config.relative_margin = HUGE[(rng.next_u32() % 4) as usize];
+            config.absolute_margin = HUGE[(rng.next_u32() % 4) as usize];
+        }
         let failure_cost = 50.0;
         let adapter_config = AdapterConfig {
             dt: 0.05,
@@ -1281,8 +1293,9 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
         };
         tally.built += 1;
         let controller = driver_controller();
-        // The episode: its mode, and per tick (action, nominal action, beyond a limit).
-        type Ticks = Vec<(f32, f32, bool)>;
+        // The episode: its mode, and per tick (action, nominal action, beyond a limit, above
+        // the envelope's threshold).
+        type Ticks = Vec<(f32, f32, bool, bool)>;
         let mut episode: Option<(Mode, Ticks)> = None;
         let (mut limit_trips, mut envelope_trips, mut beyond_total) = (0u32, 0u32, 0u32);
         while op < operations {
@@ -1324,18 +1337,24 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
                         format!("report {report:?}, {beyond} ticks beyond"),
                     ));
                 }
-                // The first tick ending `limit_ticks` consecutive ticks beyond a limit.
+                // The first tick ending `limit_ticks` consecutive ticks beyond a limit, and
+                // the first ending `envelope_ticks` consecutive ticks above the threshold.
                 let mut run = 0;
                 let due = ticks.iter().position(|t| {
                     run = if t.2 { run + 1 } else { 0 };
                     run >= config.limit_ticks
+                });
+                let mut run = 0;
+                let envelope_due = ticks.iter().position(|t| {
+                    run = if t.3 { run + 1 } else { 0 };
+                    run >= config.envelope_ticks
                 });
                 match report.trip {
                     Some(trip) => {
                         if mode == Mode::Nominal || trip.tick as usize >= ticks.len() {
                             return Err(fail(op, format!("trip {trip:?} in {mode:?}")));
                         }
-                        for (t, &(u, nominal, _)) in
+                        for (t, &(u, nominal, _, _)) in
                             ticks.iter().enumerate().skip(trip.tick as usize)
                         {
                             let expected = if nominal.is_finite() { nominal } else { 0.0 };
@@ -1350,22 +1369,33 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
                             TripReason::Limit(_) => {
                                 limit_trips += 1;
                                 tally.limit_trips += 1;
-                                if due != Some(trip.tick as usize) {
+                                if due != Some(trip.tick as usize)
+                                    || envelope_due.is_some_and(|d| d < trip.tick as usize)
+                                {
                                     return Err(fail(
                                         op,
-                                        format!("limit trip {trip:?}, due {due:?}"),
+                                        format!(
+                                            "limit trip {trip:?}, due {due:?}, an envelope \
+                                             trip due {envelope_due:?}"
+                                        ),
                                     ));
                                 }
                             }
                             TripReason::Envelope => {
                                 envelope_trips += 1;
                                 tally.envelope_trips += 1;
-                                if due.is_some_and(|d| d < trip.tick as usize) {
+                                if due.is_some_and(|d| d <= trip.tick as usize) {
                                     return Err(fail(
                                         op,
                                         format!(
                                             "envelope trip {trip:?} after a due limit trip {due:?}"
                                         ),
+                                    ));
+                                }
+                                if envelope_due != Some(trip.tick as usize) {
+                                    return Err(fail(
+                                        op,
+                                        format!("envelope trip {trip:?}, due {envelope_due:?}"),
                                     ));
                                 }
                             }
@@ -1386,10 +1416,13 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
                         }
                     }
                     None => {
-                        if mode != Mode::Nominal && due.is_some() {
+                        if mode != Mode::Nominal && (due.is_some() || envelope_due.is_some()) {
                             return Err(fail(
                                 op,
-                                format!("no trip, a limit trip was due at {due:?}"),
+                                format!(
+                                    "no trip, a limit trip was due at {due:?}, an envelope \
+                                     trip at {envelope_due:?}"
+                                ),
                             ));
                         }
                     }
@@ -1423,6 +1456,15 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
                 let signal = [value(), value()];
                 let len = (rng.next_u32() % 3) as usize;
                 let signal = &signal[..len];
+                // The threshold this tick is checked against (the envelope changes only in
+                // bare episodes, which are not checked): never NaN; the running cost (the
+                // observation) is above it unless at most it (NaN is above).
+                let tick = episode.as_ref().map_or(0, |(_, ticks)| ticks.len() as u32);
+                let threshold = adapter.guard().threshold(tick);
+                if threshold.is_some_and(f32::is_nan) {
+                    return Err(fail(op, format!("a NaN threshold at tick {tick}")));
+                }
+                let within = threshold.is_none_or(|t| observation <= t);
                 let action = guarded(seed, op, || {
                     adapter.control_with_signal(&state, &observation, signal)
                 });
@@ -1445,7 +1487,7 @@ pub fn drive_guarded_adapter(seed: u64, operations: u64) -> Result<GuardTally, V
                         };
                         !v.is_some_and(|&v| l.low <= v && v <= l.high)
                     });
-                    ticks.push((u, nominal, beyond));
+                    ticks.push((u, nominal, beyond, !within));
                 }
             }
         }

@@ -10,8 +10,9 @@
 //! in any order, cancelled and made up, mixed with the sequential calls.
 //!
 //! The `forged_*` tests run the forged-record sweep ([`host_tests::forgery`]) on every
-//! persistent optimizer, on an adapter (also with a guard and a plant model), on the
-//! model-based learner and on a plant model: a record taken mid-run, every byte overwritten in
+//! persistent optimizer, on an adapter (also with a guard and a plant model, and with a
+//! guard whose failure cost and span sit near the top of f32), on the model-based learner
+//! and on a plant model: a record taken mid-run, every byte overwritten in
 //! turn (0x00, 0xFF, 0x7F, +1; NaN and ±∞ over every four bytes), the checksum recomputed;
 //! what loads runs 1,000 asks and tells (5,000 in release, on records taken at three points
 //! of the run) without a panic, a non-finite θ, a θ outside the box or an action outside the
@@ -664,8 +665,13 @@ fn forged_any_optimizer() {
 }
 
 /// The adapter the forged-adapter tests save: the driver's PD and correction envelope, a
-/// quadratic cost, `optimizer` from θ = 0.
+/// quadratic cost, `optimizer` from θ = 0, a failure cost of 100.
 fn forged_adapter_around<O: Optimizer<2>>(optimizer: O) -> ForgedAdapter<O> {
+    forged_adapter_failing_at(optimizer, 100.0)
+}
+
+/// [`forged_adapter_around`] with the failure cost `failure_cost`.
+fn forged_adapter_failing_at<O: Optimizer<2>>(optimizer: O, failure_cost: f32) -> ForgedAdapter<O> {
     let pd = Pd::<1>::try_new(Vector::repeat(3.0), Vector::repeat(0.7))
         .and_then(|pd| pd.with_limit(Vector::repeat(ACTION_LIMIT)))
         .unwrap();
@@ -673,7 +679,7 @@ fn forged_adapter_around<O: Optimizer<2>>(optimizer: O) -> ForgedAdapter<O> {
         LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(ENVELOPE)).unwrap();
     let config = AdapterConfig {
         dt: 0.1,
-        failure_cost: 100.0,
+        failure_cost,
         max_faulty_ticks: 0,
         learning_episodes: 1_000,
     };
@@ -755,6 +761,78 @@ fn forged_guarded_and_modelled_adapter() {
         forged_report(
             &format!(
                 "Adapter<CoordinateSearch<2>> with Guard<2, 8> and a plant model after {cut} episodes"
+            ),
+            result,
+        );
+    }
+}
+
+/// A guarded adapter near the top of f32: a failure cost of 2e38 and a tripped-cost span of
+/// 1e38 (their sum finite), and margins of 10× the envelope tapered to nothing at the last
+/// tick. A forgery that raises either of the pair until the sum overflows must be refused,
+/// as [`Adapter::with_guard`] refuses that pair (it loaded before the decoded adapter made
+/// the constructor's check), and a forged envelope, however large, must leave every
+/// threshold a number (10 × a large envelope overflows, times the last tick's weight 0 was
+/// NaN). Both are checked on each loaded forgery before it runs.
+#[test]
+fn forged_guarded_adapter_near_the_top_of_f32() {
+    use ctrl_adapt::controller::guard::{Guard, GuardConfig};
+    type Forged = ForgedAdapter<CoordinateSearch<2>, Guard<0, 8>>;
+    let search = CoordinateSearch::<2>::try_new(unit_box(), Vector::zeros(), FINE_SEARCH).unwrap();
+    let guard = Guard::<0, 8>::try_new(GuardConfig {
+        relative_margin: 10.0,
+        margin_taper: 0.0,
+        tripped_cost_span: 1e38,
+        ..GuardConfig::DEFAULT
+    })
+    .unwrap();
+    let mut adapter: Forged = forged_adapter_failing_at(search, 2e38)
+        .with_guard(guard)
+        .unwrap();
+    // Two bare episodes teach the guard its envelope.
+    adapter
+        .set_mode(ctrl_adapt::controller::Mode::Nominal)
+        .unwrap();
+    let mut rng = host_tests::adversarial::DriverRng::seed_from_u64(8);
+    for _ in 0..2 {
+        adapter.begin_episode(&mut rng).unwrap();
+        for _ in 0..8 {
+            let state = Vector::<2>::from_fn(|_, _| rng.next_u32() as f32 / u32::MAX as f32 - 0.5);
+            adapter.control(&state, &Vector::from([state[0]]));
+        }
+        adapter.end_episode().unwrap();
+    }
+    adapter
+        .set_mode(ctrl_adapt::controller::Mode::Learn)
+        .unwrap();
+    for &cut in CUTS {
+        let result = adapter_mid_run(adapter, cut).map(|record| {
+            forgery::sweep::<Forged>(&record, |a, rng| {
+                let failure = a.config().failure_cost;
+                let span = a.guard().config().tripped_cost_span;
+                let top = failure + span;
+                if !(top.is_finite() && top > failure) {
+                    return Err(format!(
+                        "loaded a failure cost {failure:e} and a tripped-cost span {span:e} \
+                         that with_guard refuses"
+                    ));
+                }
+                if let Some(t) = (0..8).find(|&t| a.guard().threshold(t).is_some_and(f32::is_nan)) {
+                    return Err(format!("a NaN threshold at tick {t}"));
+                }
+                run_adapter(a, rng, FORGED_STEPS / 10, 10)
+            })
+        });
+        if let Ok(tally) = &result {
+            let span = tally
+                .rejected
+                .keys()
+                .any(|e| e.contains("tripped_cost_span"));
+            assert!(span, "no forgery refused for its span: {tally}");
+        }
+        forged_report(
+            &format!(
+                "Adapter<CoordinateSearch<2>> with Guard<0, 8> near f32::MAX after {cut} episodes"
             ),
             result,
         );

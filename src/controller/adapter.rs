@@ -247,13 +247,7 @@ where
         if self.episode.is_some() {
             return Err(AdapterError::EpisodeInProgress);
         }
-        guard.config().validate()?;
-        Supervisor::<S>::fit(&guard)?;
-        let top = self.config.failure_cost + guard.config().tripped_cost_span;
-        require(
-            top.is_finite() && top > self.config.failure_cost,
-            "tripped_cost_span",
-        )?;
+        check_guard::<S, _>(&guard, &self.config)?;
         Ok(EpisodeRunner {
             controller: self.controller,
             shaper: self.shaper,
@@ -809,8 +803,7 @@ where
         self.config.validate()?;
         self.controller.validate()?;
         self.shaper.validate()?;
-        self.guard.fit()?;
-        self.guard.validate_decoded()?;
+        check_guard(&self.guard, &self.config)?;
         self.model.validate_decoded()?;
         match &self.episode {
             Some(e) if e.theta.iter().any(|v| !v.is_finite()) => Err(Error::NonFinite("episode")),
@@ -850,6 +843,20 @@ where
         }
         Ok(())
     }
+}
+
+/// The checks of `guard` in a runner of `config`, the same for
+/// [`EpisodeRunner::with_guard`] and for a decoded runner (so that no record holds a guard
+/// the constructor refuses): its own checks (its configuration's range checks, and a
+/// decoded guard's state), its limits against the state's size `S`, and its tripped-cost
+/// span against the failure cost ([`fit_tripped_cost_span`](super::guard::fit_tripped_cost_span)).
+fn check_guard<const S: usize, G: Supervisor<S>>(
+    guard: &G,
+    config: &AdapterConfig,
+) -> Result<(), Error> {
+    guard.fit()?;
+    guard.validate_decoded()?;
+    guard.fit_failure_cost(config.failure_cost)
 }
 
 fn finite_or<const A: usize>(action: Vector<A>, safe: impl FnOnce() -> Vector<A>) -> Vector<A> {

@@ -18,7 +18,8 @@
 //!    episodes ([`Mode::Nominal`]) the guard has seen, plus a margin:
 //!    `threshold(t) = e(t) + w(t)·(relative_margin·|e(t)| + absolute_margin)`, where the
 //!    weight `w(t)` is 1 unless [`GuardConfig::margin_taper`] tapers the margins linearly
-//!    towards the last tick. Ticks that no bare
+//!    towards the last tick (the margin and the sum saturate at `f32::MAX` instead of
+//!    overflowing: see [`Guard::threshold`]; a NaN cost counts as above). Ticks that no bare
 //!    episode reached (beyond `T`, or beyond the longest bare episode) are not checked
 //!    against it, nor is any tick before the first bare episode.
 //!
@@ -233,12 +234,35 @@ pub fn tripped_cost(failure_cost: f32, span: f32, tick: u32, ticks: u32) -> f32 
     }
 }
 
+/// `Ok` when a guard's `tripped_cost_span` fits a runner's `failure_cost`: their sum, the
+/// highest [`tripped_cost`], is a finite number above the failure cost (else
+/// [`Error::InvalidParameter`]`("tripped_cost_span")`). Checked by
+/// [`EpisodeRunner::with_guard`](super::EpisodeRunner::with_guard) and on every decoded
+/// guarded runner or adapter, so a record holds no pair the constructor refuses.
+///
+/// ```
+/// use ctrl_adapt::controller::guard::fit_tripped_cost_span;
+/// assert!(fit_tripped_cost_span(100.0, 10.0).is_ok());
+/// assert!(fit_tripped_cost_span(100.0, 1e-6).is_err()); // absorbed by 100 in f32
+/// assert!(fit_tripped_cost_span(3e38, 1e38).is_err()); // overflows
+/// ```
+pub fn fit_tripped_cost_span(failure_cost: f32, span: f32) -> Result<(), Error> {
+    let top = failure_cost + span;
+    require(top.is_finite() && top > failure_cost, "tripped_cost_span")
+}
+
 /// What an [`EpisodeRunner`](super::EpisodeRunner) asks of its supervisor each tick:
 /// implemented by [`Unguarded`] (no supervision, no bytes, no instructions) and by
 /// [`Guard`].
 pub trait Supervisor<const S: usize> {
     /// `Ok` when the supervisor fits a state in R^S.
     fn fit(&self) -> Result<(), Error> {
+        Ok(())
+    }
+    /// `Ok` when the supervisor fits a runner whose failure cost is `failure_cost` (for a
+    /// [`Guard`]: see [`fit_tripped_cost_span`]).
+    fn fit_failure_cost(&self, failure_cost: f32) -> Result<(), Error> {
+        let _ = failure_cost;
         Ok(())
     }
     /// An episode in `mode` begins.
@@ -370,17 +394,24 @@ impl<const L: usize, const T: usize> Guard<L, T> {
 
     /// The running cost allowed at `tick`, margins included (tapered by
     /// [`GuardConfig::margin_taper`]); `None` where unchecked.
+    ///
+    /// Never NaN, and finite wherever it is checked: the margin `relative_margin·|e| +
+    /// absolute_margin` saturates at `f32::MAX` where it would overflow, so that a weight of
+    /// 0 (the last tick under a taper of 0) leaves exactly the envelope `e` (not `0·∞`, NaN,
+    /// which no cost is above), and the threshold saturates at `f32::MAX` too: a finite
+    /// envelope never lets an infinite running cost pass.
     pub fn threshold(&self, tick: u32) -> Option<f32> {
         let e = self.envelope(tick)?;
         let c = &self.config;
-        // Linear from 1 at tick 0 to the taper at tick T − 1 (T = 1: the taper).
+        // Linear from 1 at tick 0 to the taper at tick T − 1 (T = 1: the taper); in [0, 1].
         let weight = if T > 1 {
             1.0 - (1.0 - c.margin_taper) * (tick as f32 / (T - 1) as f32)
         } else {
             c.margin_taper
         };
-        e.is_finite()
-            .then(|| e + weight * (c.relative_margin * e.abs() + c.absolute_margin))
+        // Finite, ≥ 0 (validated margins, finite e): at most f32::MAX after the `min`.
+        let margin = (c.relative_margin * e.abs() + c.absolute_margin).min(f32::MAX);
+        e.is_finite().then(|| (e + weight * margin).min(f32::MAX))
     }
 
     fn reset_episode(&mut self) {
@@ -484,8 +515,10 @@ impl<const L: usize, const T: usize, const S: usize> Supervisor<S> for Guard<L, 
         if T > 0 {
             if let Some(threshold) = self.threshold(tick) {
                 cost = running_cost();
-                // A NaN running cost counts as above.
-                if cost > threshold || cost.is_nan() {
+                // A NaN on either side counts as above (the threshold is never NaN, but a
+                // NaN there must trip, not pass).
+                let within = cost <= threshold;
+                if !within {
                     self.envelope_run = self.envelope_run.saturating_add(1);
                 } else {
                     self.envelope_run = 0;
@@ -523,6 +556,10 @@ impl<const L: usize, const T: usize, const S: usize> Supervisor<S> for Guard<L, 
         let beyond = self.beyond;
         self.reset_episode();
         (trip, beyond)
+    }
+
+    fn fit_failure_cost(&self, failure_cost: f32) -> Result<(), Error> {
+        fit_tripped_cost_span(failure_cost, self.config.tripped_cost_span)
     }
 
     fn told(&self, failure_cost: f32, trip: &Trip, ticks: u32) -> f32 {
@@ -768,6 +805,55 @@ mod tests {
         assert_eq!((trip.tick, trip.reason), (3, TripReason::Envelope));
     }
 
+    /// Regression: under a taper of 0 the margins' weight at the last tick is 0, and a
+    /// margin that overflows f32 (10·1e38) made the threshold there `e + 0·∞` = NaN, which no
+    /// running cost is above: a running cost of `f32::MAX` at that tick was never handed back.
+    #[test]
+    fn a_zero_weight_on_an_overflowing_margin_leaves_exactly_the_envelope() {
+        let guard = Guard::<0, 2>::try_new(GuardConfig {
+            relative_margin: 10.0,
+            margin_taper: 0.0,
+            envelope_ticks: 1,
+            ..GuardConfig::DEFAULT
+        })
+        .unwrap();
+        let mut r = runner().with_guard(guard).unwrap();
+        // A bare episode at cost 1e38: running costs 1e38, 1e38.
+        r.begin_episode(Vector::zeros(), Mode::Nominal).unwrap();
+        r.control(&Vector::zeros(), &1e38);
+        r.control(&Vector::zeros(), &0.0);
+        r.end_episode().unwrap();
+        let e = r.guard().envelope(1).unwrap();
+        assert!(e.is_finite() && e >= 1e38, "{e}");
+        let threshold = r.guard().threshold(1).unwrap();
+        assert!(!threshold.is_nan());
+        // Weight 0: exactly the envelope. Full weight (tick 0): the overflowing margin
+        // saturates, and so does the threshold.
+        assert_eq!(threshold, e);
+        assert_eq!(r.guard().threshold(0), Some(f32::MAX));
+        // A running cost of f32::MAX at tick 1 is above it and trips (hysteresis 1).
+        let mut guard = *r.guard();
+        Supervisor::<2>::begin(&mut guard, Mode::Learn);
+        assert!(guard.check(Mode::Learn, 1, &Vector::<2>::zeros(), &[], || f32::MAX));
+        // The same through the runner: tick 0 within (0), tick 1 at f32::MAX handed over.
+        r.begin_episode(Vector::from(THETA), Mode::Learn).unwrap();
+        let x = Vector::from([0.5, 0.0]);
+        assert_eq!(r.control(&x, &0.0), corrected(0.5));
+        assert_eq!(r.control(&x, &f32::MAX), nominal(0.5));
+        let trip = r.end_episode().unwrap().trip.unwrap();
+        assert_eq!(
+            (trip.tick, trip.reason, trip.cost),
+            (1, TripReason::Envelope, f32::MAX)
+        );
+        // At tick 0 the threshold is f32::MAX: an infinite running cost trips there too.
+        let mut guard = *r.guard();
+        Supervisor::<2>::begin(&mut guard, Mode::Learn);
+        let zero = Vector::<2>::zeros();
+        assert!(!guard.check(Mode::Learn, 0, &zero, &[], || f32::MAX));
+        Supervisor::<2>::begin(&mut guard, Mode::Learn);
+        assert!(guard.check(Mode::Learn, 0, &zero, &[], || f32::INFINITY));
+    }
+
     fn guarded_adapter() -> Adapter<CoordinateSearch<2>, Ctl, Sum, 2, 2, 1, Guard<0, 8>> {
         let search = CoordinateSearch::try_new(
             Bounds::uniform(-1.0, 1.0).unwrap(),
@@ -936,6 +1022,38 @@ mod tests {
             prop_assert!(told_early <= (failure + span).max(failure.next_up()));
         }
 
+        /// The threshold is never NaN, and finite, at least the envelope and at most
+        /// `f32::MAX` wherever it is checked, for any valid margins and taper (huge ones
+        /// and 0 included) and any envelope a bare episode can leave.
+        #[test]
+        fn thresholds_are_never_nan(
+            relative in prop_oneof![Just(0.0f32), Just(f32::MAX), 0.0f32..1e3, 0.0f32..f32::MAX],
+            absolute in prop_oneof![Just(0.0f32), Just(f32::MAX), 0.0f32..1e3, 0.0f32..f32::MAX],
+            taper in prop_oneof![Just(0.0f32), Just(1.0f32), 0.0f32..=1.0],
+            envelope in proptest::array::uniform5(any::<f32>()),
+        ) {
+            let mut guard = Guard::<0, 5>::try_new(GuardConfig {
+                relative_margin: relative,
+                absolute_margin: absolute,
+                margin_taper: taper,
+                ..GuardConfig::DEFAULT
+            }).unwrap();
+            for (stored, x) in guard.envelope.iter_mut().zip(envelope) {
+                // As a bare episode learns it: NaN as +∞.
+                *stored = bf16_up(if x.is_nan() { f32::INFINITY } else { x });
+            }
+            for t in 0..5 {
+                let e = guard.envelope(t).unwrap();
+                match guard.threshold(t) {
+                    Some(threshold) => prop_assert!(
+                        threshold.is_finite() && threshold >= e,
+                        "tick {}: e {}, threshold {}", t, e, threshold
+                    ),
+                    None => prop_assert!(!e.is_finite()),
+                }
+            }
+        }
+
         /// The guard never panics and never hands over a bare episode, whatever the state,
         /// the signal and the running cost.
         #[test]
@@ -1005,5 +1123,81 @@ mod tests {
             record::load::<Guard<0, 8>>(bytes),
             Err(RecordError::Invalid(_))
         ));
+    }
+
+    /// Regression: a guarded adapter's record whose failure cost (3e38) and tripped-cost
+    /// span (1e38) overflow f32 together, the checksum recomputed, loaded, though
+    /// [`Adapter::with_guard`] refuses that pair. The decoded adapter's checks now make the
+    /// constructor's (one function), and refuse it with the same error.
+    #[cfg(feature = "serde")]
+    #[test]
+    fn a_record_with_a_failure_cost_and_span_the_constructor_refuses_is_refused() {
+        use crate::record::{self, RecordError};
+        type Guarded = Adapter<CoordinateSearch<2>, Ctl, Sum, 2, 2, 1, Guard<0, 8>>;
+        let search = || {
+            CoordinateSearch::try_new(
+                Bounds::uniform(-1.0, 1.0).unwrap(),
+                Vector::zeros(),
+                CoordinateConfig::DEFAULT,
+            )
+            .unwrap()
+        };
+        let guard = Guard::<0, 8>::try_new(GuardConfig {
+            tripped_cost_span: 1e38,
+            ..GuardConfig::DEFAULT
+        })
+        .unwrap();
+        // The constructor: 3e38 + 1e38 overflows.
+        let config = |failure_cost| AdapterConfig {
+            failure_cost,
+            ..CONFIG
+        };
+        let refused =
+            Adapter::try_new(search(), controller(), Sum(0.0), config(3e38), THETA.into())
+                .unwrap()
+                .with_guard(guard)
+                .unwrap_err();
+        let expected = Error::InvalidParameter("tripped_cost_span");
+        assert_eq!(
+            refused,
+            crate::controller::AdapterError::Optimizer(expected)
+        );
+        // The record of an accepted pair (failure cost 7), forged to hold 3e38.
+        let accepted: Guarded =
+            Adapter::try_new(search(), controller(), Sum(0.0), config(7.0), THETA.into())
+                .unwrap()
+                .with_guard(guard)
+                .unwrap();
+        let mut buf = [0u8; 1024];
+        let record = record::save(&accepted, &mut buf).unwrap().to_vec();
+        assert_eq!(record::load::<Guarded>(&record), Ok(accepted));
+        let end = record.len() - 4;
+        let seven = 7.0f32.to_le_bytes();
+        let at: std::vec::Vec<usize> = (0..end - 3)
+            .filter(|&i| record[i..i + 4] == seven)
+            .collect();
+        assert_eq!(at.len(), 1, "7.0 occurs once, as the failure cost");
+        let mut forged = record.clone();
+        forged[at[0]..at[0] + 4].copy_from_slice(&3e38f32.to_le_bytes());
+        let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI).checksum(&forged[..end]);
+        forged[end..].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(
+            record::load::<Guarded>(&forged),
+            Err(RecordError::Invalid(expected))
+        );
+        // The runner alone too.
+        let runner = runner().with_guard(guard).unwrap();
+        let record = record::save(&runner, &mut buf).unwrap().to_vec();
+        let end = record.len() - 4;
+        let hundred = 100.0f32.to_le_bytes();
+        let at = (0..end - 3).find(|&i| record[i..i + 4] == hundred).unwrap();
+        let mut forged = record.clone();
+        forged[at..at + 4].copy_from_slice(&3e38f32.to_le_bytes());
+        let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI).checksum(&forged[..end]);
+        forged[end..].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(
+            record::load::<EpisodeRunner<Ctl, Sum, 2, 2, 1, Guard<0, 8>>>(&forged),
+            Err(RecordError::Invalid(expected))
+        );
     }
 }

@@ -753,7 +753,7 @@ mod tests {
                 refused += 1;
             }
             x = next;
-            if k % 50_000 == 0 {
+            if k.is_multiple_of(50_000) {
                 model.validate().unwrap();
             }
         }
@@ -772,7 +772,7 @@ mod tests {
             ..ModelConfig::DEFAULT
         };
         let mut model = RlsModel::<2, 1, 4>::try_new(config).unwrap();
-        let square = |k: u32| if (k / 1000) % 2 == 0 { 1.0 } else { -1.0 };
+        let square = |k: u32| if (k / 1000).is_multiple_of(2) { 1.0 } else { -1.0 };
         assert_eq!(refused_ticks(&mut model, 200_000, square), 0);
         model.validate().unwrap();
         for i in 0..4 {
