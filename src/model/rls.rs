@@ -487,23 +487,27 @@ impl<const S: usize, const A: usize, const R: usize> RlsModel<S, A, R> {
         }
         let max = self.config.max_variance * (1.0 + 1e-5);
         require(
-            (0..R).all(|i| diagonal_entry(&self.factor, &self.variances, i) <= max),
+            diagonal(&self.factor, &self.variances)
+                .iter()
+                .all(|p| *p <= max),
             "covariance",
         )
     }
 }
 
-/// Pᵢᵢ = Σₖ≥ᵢ Uᵢₖ²·dₖ (U unit upper triangular); +∞ if it overflows.
-fn diagonal_entry<const R: usize>(
-    factor: &SMatrix<f32, R, R>,
-    variances: &Vector<R>,
-    i: usize,
-) -> f32 {
-    let mut sum = variances[i];
-    for k in (i + 1)..R {
-        sum += factor[(i, k)] * factor[(i, k)] * variances[k];
+/// P's diagonal, Pᵢᵢ = dᵢ + Σₖ>ᵢ Uᵢₖ²·dₖ (U unit upper triangular), each entry +∞ if it
+/// overflows. Both loops run over 0..R (constant bounds, so no index can panic), the same
+/// sums in the same order for the bound after a tick and for `validate`.
+fn diagonal<const R: usize>(factor: &SMatrix<f32, R, R>, variances: &Vector<R>) -> Vector<R> {
+    let mut p = *variances;
+    for i in 0..R {
+        for k in 0..R {
+            if k > i {
+                p[i] += factor[(i, k)] * factor[(i, k)] * variances[k];
+            }
+        }
     }
-    sum
+    p
 }
 
 /// Bounds P's diagonal by `max` with the congruence S·P·S (see the module docs): the factors
@@ -517,8 +521,9 @@ fn bound_diagonal<const R: usize>(
 ) -> bool {
     let mut scale = Vector::<R>::repeat(1.0);
     let mut any = false;
+    let diagonal = diagonal(factor, variances);
     for i in 0..R {
-        let p = diagonal_entry(factor, variances, i);
+        let p = diagonal[i];
         if p.is_nan() || p > max {
             // p = +∞ gives sᵢ = 0: kept positive, and the check below decides.
             scale[i] = libm::sqrtf(max / p).max(f32::MIN_POSITIVE);
@@ -535,7 +540,10 @@ fn bound_diagonal<const R: usize>(
         variances[j] = (variances[j] * scale[j] * scale[j]).max(f32::MIN_POSITIVE);
     }
     // The rare path: the scaled diagonal as `validate` computes it.
-    (0..R).all(|i| diagonal_entry(factor, variances, i) <= max * (1.0 + 1e-5))
+    let bound = max * (1.0 + 1e-5);
+    self::diagonal(factor, variances)
+        .iter()
+        .all(|p| *p <= bound)
 }
 
 #[cfg(test)]
@@ -772,7 +780,13 @@ mod tests {
             ..ModelConfig::DEFAULT
         };
         let mut model = RlsModel::<2, 1, 4>::try_new(config).unwrap();
-        let square = |k: u32| if (k / 1000).is_multiple_of(2) { 1.0 } else { -1.0 };
+        let square = |k: u32| {
+            if (k / 1000).is_multiple_of(2) {
+                1.0
+            } else {
+                -1.0
+            }
+        };
         assert_eq!(refused_ticks(&mut model, 200_000, square), 0);
         model.validate().unwrap();
         for i in 0..4 {
