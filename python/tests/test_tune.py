@@ -358,7 +358,17 @@ def most_at_once(results):
     return peak
 
 
-@pytest.mark.parametrize("algorithm", ["cmaes", "coordinate"])
+# The sequential search's run (30 trials one at a time, about 50 s of Ray) is a slow test:
+# `CTRL_ADAPT_SLOW=1 bash scripts/python-ci` (`scripts/research python-slow`) runs it. Its
+# limit of one in flight is checked without a cluster above
+# (test_it_never_hands_out_more_than_the_optimizer_allows), and CMA-ES's run below checks the
+# same searcher on the cluster.
+SLOW = pytest.mark.skipif(
+    os.environ.get("CTRL_ADAPT_SLOW") != "1", reason="slow: set CTRL_ADAPT_SLOW=1 (scripts/research python-slow)"
+)
+
+
+@pytest.mark.parametrize("algorithm", ["cmaes", pytest.param("coordinate", marks=SLOW)])
 def test_it_learns_on_two_workers_within_the_optimizers_limit(cluster, algorithm, tmp_path):
     assert cluster["CPU"] == 2
     s = CtrlAdaptSearch(optimizer=optimizer(algorithm, seed=1), metric="cost", mode="min")
