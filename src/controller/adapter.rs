@@ -741,6 +741,62 @@ where
         Ok(())
     }
 
+    /// Reopens learning with `optimizer` (built around [`Adapter::deployed_theta`], e.g. a
+    /// coordinate search centred on it): after a change of the plant in service, or on an
+    /// operator's request. The θ deployed until now becomes the initial θ (what
+    /// [`Mode::Deploy`] runs until the new optimizer has a best), the mode [`Mode::Learn`], and
+    /// the learning budget (`AdapterConfig::learning_episodes`) counts from zero again, so
+    /// that [`Adapter::begin_seeded_episode`] derives the same episode RNGs as the first
+    /// learning did (give it another device seed for other draws). The old optimizer's best
+    /// is dropped with it: its costs were measured on the plant before the change, and
+    /// "best" compares only costs measured in the same conditions. The guard's envelope and
+    /// the model are kept (clear or re-measure them through [`Adapter::guard_mut`] and
+    /// [`Adapter::model_mut`] if the change makes them stale).
+    ///
+    /// Errors while an episode is running, or if the deployed θ lies outside `optimizer`'s
+    /// bounds; the adapter is then unchanged (and `optimizer` dropped).
+    ///
+    /// ```
+    /// use ctrl_adapt::controller::{Adapter, AdapterConfig, CorrectedPd, LinearPolicy, Mode, Pd, StateFeatures};
+    /// use ctrl_adapt::cost::QuadraticCost;
+    /// use ctrl_adapt::{Bounds, CoordinateConfig, CoordinateSearch, Vector};
+    /// # use rand_core::SeedableRng;
+    /// # let mut rng = rand_xoshiro::Xoshiro128PlusPlus::seed_from_u64(1);
+    /// let pd = Pd::<1>::try_new(Vector::repeat(2.0), Vector::repeat(0.5))?;
+    /// let policy = LinearPolicy::try_new(StateFeatures::<2>::identity(), Vector::repeat(1.0))?;
+    /// let controller: CorrectedPd<1, 2, 2, 2, _> = CorrectedPd::new(pd, policy);
+    /// let bounds = Bounds::uniform(-1.0, 1.0)?;
+    /// let search = CoordinateSearch::try_new(bounds, Vector::zeros(), CoordinateConfig::DEFAULT)?;
+    /// let config = AdapterConfig { dt: 0.1, failure_cost: 10.0, max_faulty_ticks: 0, learning_episodes: 1 };
+    /// let shaper = QuadraticCost::try_new(Vector::<1>::repeat(1.0))?;
+    /// let mut adapter = Adapter::try_new(search, controller, shaper, config, Vector::zeros())?;
+    /// adapter.begin_episode(&mut rng)?;
+    /// adapter.control(&Vector::from([0.1, 0.0]), &Vector::repeat(0.1));
+    /// adapter.end_episode()?;
+    /// adapter.begin_episode(&mut rng)?; // the budget of one episode is spent: deployed
+    /// adapter.end_episode()?;
+    /// assert_eq!(adapter.mode(), Mode::Deploy);
+    /// // The plant changed: search again, from what is deployed.
+    /// let deployed = adapter.deployed_theta();
+    /// let search = CoordinateSearch::try_new(bounds, deployed, CoordinateConfig::DEFAULT)?;
+    /// adapter.relearn(search)?;
+    /// assert_eq!((adapter.mode(), adapter.learning_episodes()), (Mode::Learn, 0));
+    /// assert_eq!(adapter.deployed_theta(), deployed);
+    /// # Ok::<(), Box<dyn core::error::Error>>(())
+    /// ```
+    pub fn relearn(&mut self, optimizer: O) -> Result<(), AdapterError> {
+        if self.runner.in_episode() {
+            return Err(AdapterError::EpisodeInProgress);
+        }
+        let deployed = self.deployed_theta();
+        optimizer.bounds().check(&deployed, "initial")?;
+        self.optimizer = optimizer;
+        self.initial = deployed;
+        self.mode = Mode::Learn;
+        self.learning_episodes = 0;
+        Ok(())
+    }
+
     /// The current mode.
     pub fn mode(&self) -> Mode {
         self.mode
@@ -929,6 +985,55 @@ mod tests {
 
     fn rng() -> Xoshiro128PlusPlus {
         Xoshiro128PlusPlus::seed_from_u64(5)
+    }
+
+    /// Checks `relearn`: refused during an episode and for a box that excludes the deployed
+    /// θ (the adapter unchanged both times); otherwise learning reopens from the deployed θ
+    /// with a fresh budget, and the new optimizer's first candidate (its centre) is that θ.
+    #[test]
+    fn relearn_reopens_learning_from_the_deployed_theta() {
+        let mut a = adapter(CONFIG, 100);
+        let mut r = rng();
+        for cost in [3.0, 1.0, 2.0, 4.0] {
+            a.begin_episode(&mut r).unwrap();
+            a.control(&Vector::from([0.1, 0.0]), &cost);
+            a.end_episode().unwrap();
+        }
+        a.set_mode(Mode::Deploy).unwrap();
+        let deployed = a.deployed_theta();
+        assert_ne!(deployed, Vector::<2>::zeros());
+        let around = |lower: f32, upper: f32| {
+            CoordinateSearch::try_new(
+                Bounds::uniform(lower, upper).unwrap(),
+                deployed.map(|t| t.clamp(lower, upper)),
+                CoordinateConfig::DEFAULT,
+            )
+            .unwrap()
+        };
+        a.begin_episode(&mut r).unwrap();
+        let before = a;
+        assert_eq!(
+            a.relearn(around(-1.0, 1.0)),
+            Err(AdapterError::EpisodeInProgress)
+        );
+        a.end_episode().unwrap();
+        let before_box = a;
+        // A box that leaves the deployed θ out.
+        let far = if deployed[0] > 0.0 {
+            (-1.0, -0.9)
+        } else {
+            (0.9, 1.0)
+        };
+        assert_eq!(
+            a.relearn(around(far.0, far.1)),
+            Err(AdapterError::Optimizer(Error::OutOfBounds("initial")))
+        );
+        assert_eq!(a, before_box);
+        assert_ne!(before, before_box);
+        a.relearn(around(-1.0, 1.0)).unwrap();
+        assert_eq!((a.mode(), a.learning_episodes()), (Mode::Learn, 0));
+        assert_eq!(a.deployed_theta(), deployed);
+        assert_eq!(a.begin_episode(&mut r).unwrap(), deployed);
     }
 
     #[test]
