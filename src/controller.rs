@@ -13,6 +13,7 @@
 
 pub mod adapter;
 pub mod builder;
+pub mod change;
 pub mod guard;
 pub mod nominal;
 pub mod pd;
@@ -20,6 +21,7 @@ pub mod policy;
 
 pub use adapter::{Adapter, AdapterConfig, AdapterError, EpisodeReport, EpisodeRunner, Mode};
 pub use builder::{AdapterBuilder, CorrectedAdapter};
+pub use change::{ChangeConfig, ChangeDetector, Verdict};
 pub use guard::{Guard, GuardConfig, Limit, Source, Trip, TripReason, Unguarded};
 pub use nominal::{Corrected, Nominal};
 pub use pd::{Derivative, Pd};

@@ -322,6 +322,7 @@ pub(crate) mod array {
 
 mod shapes {
     use super::{Error, Persistent, Shape};
+    use crate::controller::change::ChangeDetector;
     use crate::controller::guard::{Guard, Supervisor, Unguarded};
     use crate::controller::{
         Adapter, Corrected, CorrectedPd, EpisodeRunner, IdentityFeatures, LinearPolicy, Pd,
@@ -353,6 +354,15 @@ mod shapes {
         /// limit that exists (the state coordinates are checked by the runner holding it).
         fn validate(&self) -> Result<(), Error> {
             <Self as Supervisor<0>>::validate_decoded(self)
+        }
+    }
+    impl Persistent for ChangeDetector {
+        const SHAPE: Shape = Shape::new(*b"CHGD", &[]);
+
+        /// The configuration, finite references and statistics, counts that agree
+        /// ([`ChangeDetector::validate`]).
+        fn validate(&self) -> Result<(), Error> {
+            ChangeDetector::validate(self)
         }
     }
     /// No model adds nothing to a record either.
@@ -1196,6 +1206,27 @@ mod tests {
                 proptest::prop_assert_eq!(bytes(&loaded), record);
             }
         }
+    }
+
+    /// Checks: a change detector saves and loads back bit-identical after every episode, in
+    /// each phase (measuring its reference, steady, alarmed); its decoded-state checks are
+    /// tested in its module.
+    #[test]
+    fn change_detectors_round_trip_and_are_validated() {
+        use crate::controller::change::{ChangeConfig, ChangeDetector};
+        let mut detector = ChangeDetector::try_new(ChangeConfig::DEFAULT).unwrap();
+        let costs = (0..40).map(|k| 1.0 + 0.01 * ((k * 7 % 11) as f32 - 5.0));
+        let costs = costs.chain([1.5, 1.6, 1.7, 1.8, 1.9, 2.0, 2.1, 2.2]);
+        let mut seen_alarm = false;
+        for (k, cost) in costs.enumerate() {
+            detector.observe(cost, Some(0.1)).unwrap();
+            let record = bytes(&detector);
+            let loaded: ChangeDetector = load(&record).unwrap();
+            assert_eq!(loaded, detector, "after episode {k}");
+            assert_eq!(bytes(&loaded), record);
+            seen_alarm |= detector.changed();
+        }
+        assert!(seen_alarm, "a rise of 50 to 120 % is a change");
     }
 
     /// Checks: a decoded model or learner whose checksum is right but whose content is not
