@@ -16,6 +16,7 @@
     "[firmware]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/firmware.md\n",
     "[porting]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/porting.md\n",
     "[plants]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/plants.md\n",
+    "[in-service]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/in-service.md\n",
     "[figures-json]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/docs/figures.json\n",
     "[changelog]: https://docs.rs/crate/ctrl-adapt/", env!("CARGO_PKG_VERSION"), "/source/CHANGELOG.md\n",
 )]
@@ -155,4 +156,6 @@ mod guide {
     struct ModelBasedGuide;
     #[doc = include_str!("../docs/plants.md")]
     struct Plants;
+    #[doc = include_str!("../docs/in-service.md")]
+    struct InService;
 }
