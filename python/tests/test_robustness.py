@@ -193,8 +193,13 @@ def test_a_policy_exception_stops_a_long_rollout_at_once():
 # Ctrl-C: the rollout checks for it itself.
 INTERRUPT_SCRIPT = textwrap.dedent(
     """
+    import signal
     import ctrl_adapt, numpy as np
 
+    # A process started in the background of a non-interactive shell (as CI starts this
+    # suite) inherits SIGINT ignored, and Python then installs no KeyboardInterrupt handler:
+    # install Python's own, as an interactive interpreter has it.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     model = ctrl_adapt.RlsModel(1, 1)
     try:
         print("rolling out", flush=True)
