@@ -711,6 +711,29 @@ fn forged_adapter() {
     }
 }
 
+/// `episodes` bare episodes of 8 ticks on states drawn in [−0.5, 0.5]² (RNG `seed`), in
+/// [`Mode::Nominal`](ctrl_adapt::controller::Mode::Nominal), to teach a forged adapter's guard
+/// its envelope; the adapter is left in `Mode::Learn`.
+fn teach_envelope<O, G, M>(adapter: &mut ForgedAdapter<O, G, M>, episodes: usize, seed: u64)
+where
+    O: Optimizer<2>,
+    G: ctrl_adapt::controller::guard::Supervisor<2>,
+    M: ctrl_adapt::model::TickModel<2, 1>,
+{
+    use ctrl_adapt::controller::Mode;
+    adapter.set_mode(Mode::Nominal).unwrap();
+    let mut rng = host_tests::adversarial::DriverRng::seed_from_u64(seed);
+    for _ in 0..episodes {
+        adapter.begin_episode(&mut rng).unwrap();
+        for _ in 0..8 {
+            let state = Vector::<2>::from_fn(|_, _| rng.next_u32() as f32 / u32::MAX as f32 - 0.5);
+            adapter.control(&state, &Vector::from([state[0]]));
+        }
+        adapter.end_episode().unwrap();
+    }
+    adapter.set_mode(Mode::Learn).unwrap();
+}
+
 /// The adapter of `forged_adapter` with a runtime guard (a limit on each state coordinate,
 /// an envelope learned from three bare episodes) and a plant model fitted to every tick:
 /// the guard's envelope, counters and running trip and the model's fit are in the record
@@ -739,21 +762,7 @@ fn forged_guarded_and_modelled_adapter() {
         .and_then(|a| a.with_model(model))
         .unwrap();
     // Three bare episodes teach the guard its envelope.
-    adapter
-        .set_mode(ctrl_adapt::controller::Mode::Nominal)
-        .unwrap();
-    let mut rng = host_tests::adversarial::DriverRng::seed_from_u64(7);
-    for _ in 0..3 {
-        adapter.begin_episode(&mut rng).unwrap();
-        for _ in 0..8 {
-            let state = Vector::<2>::from_fn(|_, _| rng.next_u32() as f32 / u32::MAX as f32 - 0.5);
-            adapter.control(&state, &Vector::from([state[0]]));
-        }
-        adapter.end_episode().unwrap();
-    }
-    adapter
-        .set_mode(ctrl_adapt::controller::Mode::Learn)
-        .unwrap();
+    teach_envelope(&mut adapter, 3, 7);
     for &cut in CUTS {
         let result = adapter_mid_run(adapter, cut).map(|record| {
             forgery::sweep::<Forged>(&record, |a, rng| run_adapter(a, rng, FORGED_STEPS / 10, 10))
@@ -790,21 +799,7 @@ fn forged_guarded_adapter_near_the_top_of_f32() {
         .with_guard(guard)
         .unwrap();
     // Two bare episodes teach the guard its envelope.
-    adapter
-        .set_mode(ctrl_adapt::controller::Mode::Nominal)
-        .unwrap();
-    let mut rng = host_tests::adversarial::DriverRng::seed_from_u64(8);
-    for _ in 0..2 {
-        adapter.begin_episode(&mut rng).unwrap();
-        for _ in 0..8 {
-            let state = Vector::<2>::from_fn(|_, _| rng.next_u32() as f32 / u32::MAX as f32 - 0.5);
-            adapter.control(&state, &Vector::from([state[0]]));
-        }
-        adapter.end_episode().unwrap();
-    }
-    adapter
-        .set_mode(ctrl_adapt::controller::Mode::Learn)
-        .unwrap();
+    teach_envelope(&mut adapter, 2, 8);
     for &cut in CUTS {
         let result = adapter_mid_run(adapter, cut).map(|record| {
             forgery::sweep::<Forged>(&record, |a, rng| {
