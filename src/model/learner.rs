@@ -30,10 +30,9 @@
 //! Episodes the caller runs itself (the bare controller, small exploration episodes that
 //! make the model identifiable) are reported with [`ModelBased::record`].
 //!
-//! On the AUV (`experiments/findings/model.md`) this reached 1 m on 10 seeds of 10 with a
-//! median of 6 real episodes, but 6 of 150 episodes exceeded 1.2 × the bare cost (14 of 150
-//! in a current rotated by 45°): the screen trusts the same model the inner search
-//! exploited. It is not a safety guarantee.
+//! On the AUV it learns in a few real episodes, but some episodes exceed 1.2 × the bare cost
+//! (the figures: `experiments/findings/model.md`): the screen trusts the same model the
+//! inner search exploited. It is not a safety guarantee.
 //!
 //! The pessimistic screen (`error_weight` > 0) departs from PILCO's and Black-DROPS's
 //! uncertainty-aware screens on purpose: an RLS model gives a point prediction, so the

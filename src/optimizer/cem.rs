@@ -738,7 +738,7 @@ mod tests {
     ///   best cost below 1e-3 on every seed;
     /// * plain CEM (equal elite weights) cuts the cost tenfold (best < 0.04) on every seed,
     ///   but is not asserted to converge: its variance estimate from the elite shrinks faster
-    ///   than its mean moves, and on about half of the seeds (16 of 40 measured) the search
+    ///   than its mean moves, and on about half of the seeds the search
     ///   freezes 0.01–0.13 away from the minimiser with every variance below 10⁻³ — the
     ///   premature convergence the evolution paths and rank weights of CMA-ES avoid.
     #[test]
